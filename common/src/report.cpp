@@ -1,0 +1,86 @@
+#include "sphperf/report.hpp"
+
+#include "sphperf/build_info.hpp"
+#include "sphperf/cli.hpp"
+#include "sphperf/topology.hpp"
+
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <system_error>
+
+namespace sphperf {
+
+std::string hostname() {
+    std::array<char, 256> buf{};
+    if (gethostname(buf.data(), buf.size() - 1) != 0)
+        return "unknown";
+    return buf.data();
+}
+
+std::string utc_timestamp() {
+    const std::time_t now = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&now, &tm);
+    std::array<char, 32> buf{};
+    std::strftime(buf.data(), buf.size(), "%Y-%m-%dT%H:%M:%SZ", &tm);
+    return buf.data();
+}
+
+nlohmann::json report_header(std::string_view benchmark, const Topology& topo) {
+    return {{"schema", report_schema},
+            {"benchmark", benchmark},
+            {"git_commit", build::git_commit()},
+            {"host", hostname()},
+            {"timestamp", utc_timestamp()},
+            {"build",
+             {{"compiler", build::compiler()},
+              {"flags", build::flags()},
+              {"build_type", build::build_type()}}},
+            {"topology", topo.summary()}};
+}
+
+namespace {
+std::filesystem::path temp_path_for(const std::filesystem::path& path) {
+    return path.string() + ".tmp." + std::to_string(getpid());
+}
+} // namespace
+
+void JsonSink::check_writable(const std::filesystem::path& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_directory(path, ec))
+        throw UsageError("output path '" + path.string() + "' is a directory, expected a file");
+    const fs::path tmp = temp_path_for(path);
+    std::ofstream probe(tmp);
+    if (!probe)
+        throw UsageError("cannot write output file '" + path.string() +
+                         "': " + std::strerror(errno) + " (expected a writable location)");
+    probe.close();
+    fs::remove(tmp, ec);
+}
+
+JsonSink::JsonSink(std::optional<std::filesystem::path> path) : path_(std::move(path)) {
+    if (path_)
+        check_writable(*path_);
+}
+
+void JsonSink::write(const nlohmann::json& report) const {
+    if (!path_)
+        return;
+    const auto tmp = temp_path_for(*path_);
+    {
+        std::ofstream out(tmp);
+        out << report.dump(2) << '\n';
+        if (!out)
+            throw std::runtime_error("failed writing " + tmp.string());
+    }
+    std::filesystem::rename(tmp, *path_);
+}
+
+} // namespace sphperf

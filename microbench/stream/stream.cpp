@@ -1,0 +1,307 @@
+// STREAM: sustainable memory bandwidth per thread count and affinity (McCalpin's four kernels
+// plus a non-temporal-store triad), with threads bound by hwloc and results validated.
+#include "stream_kernels.hpp"
+
+#include "sphperf/cli.hpp"
+#include "sphperf/report.hpp"
+#include "sphperf/stats.hpp"
+#include "sphperf/timer.hpp"
+#include "sphperf/topology.hpp"
+
+#include <omp.h>
+
+#include <atomic>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <new>
+#include <vector>
+
+namespace {
+
+using namespace sphperf;
+namespace st = sphperf::stream;
+using Real = double;
+
+constexpr std::size_t cache_multiple = 4; // STREAM's rule: each array >= 4x all last-level caches
+constexpr std::size_t alignment_bytes = 64;
+constexpr int arrays_used = 3;
+
+struct Config {
+    std::int64_t size = 0; // elements per array; 0 = sized from the last-level cache
+    int reps = 10;         // timed repetitions; one more runs first and is dropped
+    std::vector<int> threads;
+    std::vector<std::string> affinities{"compact", "scatter"};
+    std::optional<std::filesystem::path> json;
+    bool quiet = false;
+};
+
+// Default-initialised (untouched) aligned storage, so first touch happens in the bound threads.
+struct AlignedDelete {
+    void operator()(Real* p) const { ::operator delete[](p, std::align_val_t{alignment_bytes}); }
+};
+using Buffer = std::unique_ptr<Real[], AlignedDelete>;
+Buffer allocate(std::size_t n) {
+    return Buffer(new (std::align_val_t{alignment_bytes}) Real[n]);
+}
+
+struct Placement {
+    int thread;
+    std::string cpuset;
+    int last_cpu;
+};
+
+struct ConfigResult {
+    int threads;
+    Affinity affinity;
+    std::array<std::vector<double>, st::kernels.size()> times; // seconds, dropped rep removed
+    std::vector<double> nt_times;
+    st::Validation validation, validation_nt;
+    std::vector<Placement> placement;
+};
+
+// Runs `body(thread, range)` on `threads` OpenMP threads and returns the wall time of the region.
+template <class Body> double timed_parallel(std::size_t n, int threads, Body&& body) {
+    const double t0 = wall_seconds();
+#pragma omp parallel num_threads(threads)
+    {
+        const int t = omp_get_thread_num();
+        body(t, st::chunk(n, threads, t));
+    }
+    return wall_seconds() - t0;
+}
+
+ConfigResult run_config(const Topology& topo, std::size_t n, int threads, Affinity affinity,
+                        int reps) {
+    ConfigResult r{threads, affinity, {}, {}, {}, {}, {}};
+    const auto places = topo.placement(threads, affinity);
+    Buffer a = allocate(n), b = allocate(n), c = allocate(n);
+    auto span_of = [n](Buffer& buf, st::Range rg) {
+        return std::span<Real>(buf.get() + rg.begin, rg.end - rg.begin);
+    };
+    auto cspan_of = [n](Buffer& buf, st::Range rg) {
+        return std::span<const Real>(buf.get() + rg.begin, rg.end - rg.begin);
+    };
+
+    int team = 0;
+    std::atomic<int> bind_failures{0};
+    // Bind, then first-touch each thread's own part of the arrays (pages land near that core).
+    timed_parallel(n, threads, [&](int t, st::Range rg) {
+        try { // an exception must not leave an OpenMP region
+            topo.bind_this_thread(places[static_cast<std::size_t>(t)]);
+        } catch (const std::exception&) {
+            ++bind_failures;
+        }
+        if (t == 0)
+            team = omp_get_num_threads();
+        for (std::size_t j = rg.begin; j < rg.end; ++j) {
+            a[j] = st::Initial<Real>::a;
+            b[j] = st::Initial<Real>::b;
+            c[j] = st::Initial<Real>::c;
+        }
+        for (std::size_t j = rg.begin; j < rg.end; ++j)
+            a[j] = 2 * a[j];
+    });
+    if (bind_failures > 0)
+        throw std::runtime_error("hwloc could not bind " + std::to_string(bind_failures.load()) +
+                                 " thread(s); is the process restricted to fewer cores?");
+    if (team != threads)
+        throw std::runtime_error("OpenMP gave " + std::to_string(team) + " threads, asked for " +
+                                 std::to_string(threads));
+
+    const Real s = st::Initial<Real>::scalar;
+    for (int k = 0; k <= reps; ++k) {
+        const std::array<double, 4> t{
+            timed_parallel(n, threads,
+                           [&](int, st::Range rg) { st::copy(cspan_of(a, rg), span_of(c, rg)); }),
+            timed_parallel(n, threads,
+                           [&](int, st::Range rg) { st::scale(cspan_of(c, rg), span_of(b, rg), s); }),
+            timed_parallel(n, threads,
+                           [&](int, st::Range rg) {
+                               st::add(cspan_of(a, rg), cspan_of(b, rg), span_of(c, rg));
+                           }),
+            timed_parallel(n, threads, [&](int, st::Range rg) {
+                st::triad(span_of(a, rg), cspan_of(b, rg), cspan_of(c, rg), s);
+            })};
+        if (k > 0) // the first repetition warms caches and page tables: dropped, as in STREAM
+            for (std::size_t i = 0; i < t.size(); ++i)
+                r.times[i].push_back(t[i]);
+    }
+    const std::span<const Real> va(a.get(), n), vb(b.get(), n), vc(c.get(), n);
+    const auto expected = st::expected_values<Real>(reps + 1);
+    r.validation = st::validate<Real>(va, vb, vc, expected);
+
+    // Non-temporal triad on a cleared `a`, so a kernel that stored nothing cannot pass.
+    timed_parallel(n, threads, [&](int, st::Range rg) {
+        std::fill(a.get() + rg.begin, a.get() + rg.end, Real{0});
+    });
+    for (int k = 0; k <= reps; ++k) {
+        const double t = timed_parallel(n, threads, [&](int, st::Range rg) {
+            st::triad_nt(span_of(a, rg), cspan_of(b, rg), cspan_of(c, rg), s);
+        });
+        if (k > 0)
+            r.nt_times.push_back(t);
+    }
+    r.validation_nt =
+        st::validate<Real>(va, vb, vc, {expected[1] + s * expected[2], expected[1], expected[2]});
+
+    // Record where each thread is bound and last ran, after all the timed work.
+    r.placement.resize(static_cast<std::size_t>(threads));
+    timed_parallel(n, threads, [&](int t, st::Range) {
+        r.placement[static_cast<std::size_t>(t)] = {t, topo.this_thread_binding().to_list(),
+                                                    topo.last_cpu_of_this_thread()};
+    });
+    return r;
+}
+
+nlohmann::json kernel_json(std::span<const double> times, double bytes) {
+    const Summary s = summarize(times);
+    return {{"bytes_per_iteration", bytes}, {"best_GBps", bytes / s.min * 1e-9},
+            {"avg_GBps", bytes / s.avg * 1e-9}, {"min_s", s.min},
+            {"avg_s", s.avg},  {"max_s", s.max}, {"median_s", s.median}};
+}
+
+nlohmann::json validation_json(const st::Validation& v) {
+    return {{"ok", v.ok},
+            {"rel_error", {{"a", v.rel_error[0]}, {"b", v.rel_error[1]}, {"c", v.rel_error[2]}}},
+            {"epsilon", st::validation_epsilon}};
+}
+
+Config parse(int argc, char** argv, const Topology& topo) {
+    Config cfg;
+    CLI::App app{"STREAM memory bandwidth (copy, scale, add, triad, non-temporal triad) over a "
+                 "thread sweep with compact and scatter affinity bound by hwloc."};
+    app.add_option("--size", cfg.size,
+                   "Elements per array (default: 4x the last-level cache, STREAM's rule)");
+    app.add_option("--reps", cfg.reps, "Timed repetitions per kernel (one extra is dropped)");
+    app.add_option("--threads", cfg.threads, "Thread counts to sweep (default 1..cores)")
+        ->delimiter(',');
+    app.add_option("--affinity", cfg.affinities, "Affinities to sweep: compact, scatter")
+        ->delimiter(',');
+    app.add_option("--json", cfg.json, "Write the JSON report to this file");
+    app.add_flag("--quiet", cfg.quiet, "No progress lines on stderr");
+    parse_cli(app, argc, argv);
+
+    if (app.count("--size") && cfg.size <= 0)
+        throw UsageError("--size " + std::to_string(cfg.size) +
+                         " is not a positive number of elements per array");
+    if (cfg.reps < 2)
+        throw UsageError("--reps " + std::to_string(cfg.reps) + " is too few, expected >= 2");
+    if (cfg.threads.empty())
+        for (int t = 1; t <= topo.cores(); ++t)
+            cfg.threads.push_back(t);
+    for (int t : cfg.threads)
+        if (t < 1 || t > topo.pus())
+            throw UsageError("--threads " + std::to_string(t) + " is outside 1.." +
+                             std::to_string(topo.pus()) + " (processing units on this node)");
+    for (const auto& a : cfg.affinities)
+        parse_affinity(a);
+    if (cfg.affinities.empty())
+        throw UsageError("--affinity needs at least one of compact, scatter");
+    return cfg;
+}
+
+std::size_t array_elements(const Config& cfg, const Topology& topo) {
+    std::size_t n = 0;
+    if (cfg.size > 0) {
+        n = static_cast<std::size_t>(cfg.size);
+    } else {
+        const std::uint64_t llc = topo.last_level_cache_bytes();
+        constexpr std::size_t fallback_elements = 10'000'000; // STREAM's default
+        n = llc > 0 ? cache_multiple * llc / sizeof(Real) : fallback_elements;
+    }
+    const double need = static_cast<double>(arrays_used * sizeof(Real)) * static_cast<double>(n);
+    const auto mem = static_cast<double>(topo.memory_bytes());
+    if (mem > 0 && need > 0.8 * mem)
+        throw UsageError("--size " + std::to_string(n) + " needs " +
+                         std::to_string(need / (1 << 20)) + " MiB, more than 80% of the node's " +
+                         std::to_string(mem / (1 << 20)) + " MiB");
+    return n;
+}
+
+void print_table(const std::vector<ConfigResult>& results, std::size_t n, int reps,
+                 std::uint64_t llc) {
+    std::printf("STREAM: %zu doubles per array (%.1f MiB), %d timed repetitions (+1 dropped), "
+                "last-level cache %.1f MiB\n",
+                n, static_cast<double>(n * sizeof(Real)) / (1 << 20), reps,
+                static_cast<double>(llc) / (1 << 20));
+    std::printf("%7s %-8s %-8s %10s %10s %11s %11s %11s\n", "threads", "affinity", "kernel",
+                "best GB/s", "avg GB/s", "min s", "avg s", "max s");
+    auto row = [](const ConfigResult& r, std::string_view name, std::span<const double> t,
+                  double bytes) {
+        const Summary s = summarize(t);
+        std::printf("%7d %-8s %-8s %10.2f %10.2f %11.6f %11.6f %11.6f\n", r.threads,
+                    std::string(to_string(r.affinity)).c_str(), std::string(name).c_str(),
+                    bytes / s.min * 1e-9, bytes / s.avg * 1e-9, s.min, s.avg, s.max);
+    };
+    for (const auto& r : results) {
+        for (std::size_t k = 0; k < st::kernels.size(); ++k)
+            row(r, st::kernels[k].name, r.times[k], st::bytes_moved<Real>(st::kernels[k], n));
+        row(r, "triad_nt", r.nt_times,
+            st::bytes_moved<Real>(st::kernels[static_cast<int>(st::Kernel::triad)], n));
+    }
+}
+
+int run(int argc, char** argv) {
+    const Topology topo;
+    const Config cfg = parse(argc, argv, topo);
+    const JsonSink sink(cfg.json);
+    const std::size_t n = array_elements(cfg, topo);
+    omp_set_dynamic(0);
+
+    std::vector<ConfigResult> results;
+    const std::size_t total = cfg.threads.size() * cfg.affinities.size();
+    for (int threads : cfg.threads)
+        for (const auto& aff : cfg.affinities) {
+            results.push_back(run_config(topo, n, threads, parse_affinity(aff), cfg.reps));
+            if (!cfg.quiet)
+                std::fprintf(stderr, "stream: %zu/%zu done (threads=%d affinity=%s)\n",
+                             results.size(), total, threads, aff.c_str());
+        }
+
+    nlohmann::json report = report_header("stream", topo);
+    report["array_elements"] = n;
+    report["element_bytes"] = sizeof(Real);
+    report["array_bytes"] = n * sizeof(Real);
+    report["repetitions_timed"] = cfg.reps;
+    report["repetitions_dropped"] = 1;
+    report["nt_store_isa"] = st::nt_store_isa();
+    const auto& triad_spec = st::kernels[static_cast<int>(st::Kernel::triad)];
+    double best_triad = 0, best_nt = 0;
+    bool all_valid = true;
+    for (const auto& r : results) {
+        nlohmann::json j{{"threads", r.threads}, {"affinity", to_string(r.affinity)}};
+        for (std::size_t k = 0; k < st::kernels.size(); ++k)
+            j["kernels"][st::kernels[k].name] =
+                kernel_json(r.times[k], st::bytes_moved<Real>(st::kernels[k], n));
+        j["triad_nt"] = kernel_json(r.nt_times, st::bytes_moved<Real>(triad_spec, n));
+        j["validation"] = validation_json(r.validation);
+        j["validation_nt"] = validation_json(r.validation_nt);
+        for (const auto& p : r.placement)
+            j["placement"].push_back(
+                {{"thread", p.thread}, {"cpuset", p.cpuset}, {"last_cpu", p.last_cpu}});
+        best_triad = std::max(best_triad, j["kernels"]["triad"]["best_GBps"].get<double>());
+        best_nt = std::max(best_nt, j["triad_nt"]["best_GBps"].get<double>());
+        all_valid = all_valid && r.validation.ok && r.validation_nt.ok;
+        report["results"].push_back(j);
+    }
+    report["best_triad_GBps"] = best_triad;
+    report["best_triad_nt_GBps"] = best_nt;
+    report["valid"] = all_valid;
+
+    print_table(results, n, cfg.reps, topo.last_level_cache_bytes());
+    if (!all_valid) {
+        std::fprintf(stderr, "stream: validation FAILED: results differ from the scalar replay "
+                             "by more than %g; no report written\n",
+                     st::validation_epsilon);
+        return exit_failure;
+    }
+    sink.write(report);
+    return 0;
+}
+
+} // namespace
+
+int main(int argc, char** argv) {
+    return sphperf::guarded_main("stream", [&] { return run(argc, argv); });
+}

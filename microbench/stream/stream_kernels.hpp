@@ -1,0 +1,155 @@
+#pragma once
+// McCalpin's STREAM kernels as pure functions on spans (no threads, no timing), with the byte
+// accounting of the reference STREAM as data and its validation replayed on scalars.
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <span>
+#include <string_view>
+
+#if defined(__AVX512F__) || defined(__AVX__) || defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
+namespace sphperf::stream {
+
+enum class Kernel { copy, scale, add, triad };
+
+struct KernelSpec {
+    Kernel kernel;
+    std::string_view name;
+    int arrays_read;
+    int arrays_written;
+};
+
+// STREAM counts each array once per element: 16 B/element for copy and scale, 24 B for add and
+// triad (write-allocate traffic is deliberately not counted, as in the reference).
+inline constexpr std::array<KernelSpec, 4> kernels{{{Kernel::copy, "copy", 1, 1},
+                                                    {Kernel::scale, "scale", 1, 1},
+                                                    {Kernel::add, "add", 2, 1},
+                                                    {Kernel::triad, "triad", 2, 1}}};
+
+template <class T> constexpr double bytes_moved(const KernelSpec& k, std::size_t n) {
+    return static_cast<double>(k.arrays_read + k.arrays_written) * sizeof(T) *
+           static_cast<double>(n);
+}
+
+// The same initial values and scalar as the reference STREAM.
+template <class T> struct Initial {
+    static constexpr T a = 1;
+    static constexpr T b = 2;
+    static constexpr T c = 0;
+    static constexpr T scalar = 3;
+};
+
+template <class T> void copy(std::span<const T> a, std::span<T> c) {
+    for (std::size_t j = 0; j < c.size(); ++j)
+        c[j] = a[j];
+}
+template <class T> void scale(std::span<const T> c, std::span<T> b, T s) {
+    for (std::size_t j = 0; j < b.size(); ++j)
+        b[j] = s * c[j];
+}
+template <class T> void add(std::span<const T> a, std::span<const T> b, std::span<T> c) {
+    for (std::size_t j = 0; j < c.size(); ++j)
+        c[j] = a[j] + b[j];
+}
+template <class T> void triad(std::span<T> a, std::span<const T> b, std::span<const T> c, T s) {
+    for (std::size_t j = 0; j < a.size(); ++j)
+        a[j] = b[j] + s * c[j];
+}
+
+// Which instruction set the non-temporal triad uses in this build.
+constexpr std::string_view nt_store_isa() {
+#if defined(__AVX512F__)
+    return "avx512";
+#elif defined(__AVX__)
+    return "avx";
+#elif defined(__SSE2__)
+    return "sse2";
+#else
+    return "none";
+#endif
+}
+
+// Triad with streaming stores that bypass the cache (no write-allocate read of `a`).
+// `a` must start on a 64-byte boundary; the tail is stored normally.
+inline void triad_nt(std::span<double> a, std::span<const double> b, std::span<const double> c,
+                     double s) {
+    std::size_t j = 0;
+#if defined(__AVX512F__)
+    const __m512d vs = _mm512_set1_pd(s);
+    for (; j + 8 <= a.size(); j += 8)
+        _mm512_stream_pd(&a[j], _mm512_fmadd_pd(vs, _mm512_loadu_pd(&c[j]), _mm512_loadu_pd(&b[j])));
+#elif defined(__AVX__)
+    const __m256d vs = _mm256_set1_pd(s);
+    for (; j + 4 <= a.size(); j += 4)
+        _mm256_stream_pd(&a[j],
+                         _mm256_add_pd(_mm256_loadu_pd(&b[j]), _mm256_mul_pd(vs, _mm256_loadu_pd(&c[j]))));
+#elif defined(__SSE2__)
+    const __m128d vs = _mm_set1_pd(s);
+    for (; j + 2 <= a.size(); j += 2)
+        _mm_stream_pd(&a[j], _mm_add_pd(_mm_loadu_pd(&b[j]), _mm_mul_pd(vs, _mm_loadu_pd(&c[j]))));
+#endif
+    for (; j < a.size(); ++j)
+        a[j] = b[j] + s * c[j];
+#if defined(__SSE2__)
+    _mm_sfence(); // streaming stores are weakly ordered: make them visible before timing stops
+#endif
+}
+
+struct Validation {
+    bool ok = false;
+    std::array<double, 3> rel_error{}; // a, b, c: average |x - expected| / |expected|
+};
+
+// Relative tolerance of the reference STREAM for double.
+inline constexpr double validation_epsilon = 1.e-13;
+
+// Expected values after `iterations` passes of copy, scale, add, triad from Initial<T>, with the
+// reference's initial doubling of a.
+template <class T> std::array<T, 3> expected_values(int iterations) {
+    T aj = Initial<T>::a, bj = Initial<T>::b, cj = Initial<T>::c;
+    const T s = Initial<T>::scalar;
+    aj = 2 * aj;
+    for (int k = 0; k < iterations; ++k) {
+        cj = aj;
+        bj = s * cj;
+        cj = aj + bj;
+        aj = bj + s * cj;
+    }
+    return {aj, bj, cj};
+}
+
+template <class T>
+Validation validate(std::span<const T> a, std::span<const T> b, std::span<const T> c,
+                    const std::array<T, 3>& expected) {
+    Validation v;
+    const std::array<std::span<const T>, 3> arrays{a, b, c};
+    v.ok = true;
+    for (std::size_t k = 0; k < 3; ++k) {
+        double err = 0;
+        for (T x : arrays[k])
+            err += std::abs(static_cast<double>(x) - static_cast<double>(expected[k]));
+        err /= static_cast<double>(arrays[k].size());
+        v.rel_error[k] = err / std::abs(static_cast<double>(expected[k]));
+        if (!(v.rel_error[k] <= validation_epsilon))
+            v.ok = false;
+    }
+    return v;
+}
+
+// Half-open range of elements owned by `thread` of `threads`, boundaries on 8-element (64-byte)
+// multiples so streaming stores stay aligned and first touch matches the kernels' partition.
+struct Range {
+    std::size_t begin, end;
+};
+inline Range chunk(std::size_t n, int threads, int thread) {
+    constexpr std::size_t align = 8;
+    const std::size_t blocks = (n + align - 1) / align;
+    const auto t = static_cast<std::size_t>(thread), nt = static_cast<std::size_t>(threads);
+    const std::size_t b0 = blocks * t / nt, b1 = blocks * (t + 1) / nt;
+    return {std::min(n, b0 * align), std::min(n, b1 * align)};
+}
+
+} // namespace sphperf::stream

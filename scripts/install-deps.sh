@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs the Debian packages sphperf needs, only those missing. Idempotent and non-interactive:
+# CI and every fresh machine get their dependencies from here.
+set -euo pipefail
+
+packages=(
+    build-essential cmake pkg-config git
+    libopenmpi-dev openmpi-bin
+    libopenblas-dev
+    libhwloc-dev hwloc
+    nlohmann-json3-dev
+    libgtest-dev
+    libcli11-dev
+    python3-matplotlib
+)
+
+missing=()
+for p in "${packages[@]}"; do
+    if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+        missing+=("$p")
+    fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+    echo "install-deps: all dependencies present"
+    exit 0
+fi
+
+sudo_cmd=()
+if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "install-deps: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+    sudo_cmd=(sudo)
+fi
+
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
