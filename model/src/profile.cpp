@@ -1,0 +1,96 @@
+#include "sphperf/model/profile.hpp"
+
+#include "sphperf/cli.hpp"
+
+#include <fstream>
+
+namespace sphperf::model {
+
+nlohmann::json load_report(const std::filesystem::path& path, std::string_view benchmark) {
+    std::ifstream in(path);
+    if (!in)
+        throw UsageError("cannot read " + std::string(benchmark) + " report '" + path.string() +
+                         "'");
+    nlohmann::json j;
+    try {
+        in >> j;
+    } catch (const nlohmann::json::exception& e) {
+        throw UsageError("'" + path.string() + "' is not valid JSON (" + e.what() + ")");
+    }
+    if (!j.is_object() || j.value("benchmark", "") != benchmark)
+        throw UsageError("'" + path.string() + "' is not a " + std::string(benchmark) +
+                         " report (its \"benchmark\" field differs)");
+    return j;
+}
+
+namespace {
+double require_number(const nlohmann::json& j, const nlohmann::json::json_pointer& ptr,
+                      std::string_view what) {
+    if (!j.contains(ptr) || !j.at(ptr).is_number())
+        throw UsageError(std::string(what) + " report lacks the number " + ptr.to_string());
+    return j.at(ptr).get<double>();
+}
+
+nlohmann::json coretype_entry(const nlohmann::json& dgemm) {
+    double best_fraction = 0;
+    for (const auto& r : dgemm.value("results", nlohmann::json::array()))
+        best_fraction = std::max(best_fraction, r.value("fraction_of_peak", 0.0));
+    return {{"corename", dgemm.value("corename", "unknown")},
+            {"coretype_env", dgemm.value("openblas_coretype_env", nlohmann::json())},
+            {"best_gflops", dgemm.value("best_gflops", 0.0)},
+            {"results", dgemm.value("results", nlohmann::json::array())}};
+}
+} // namespace
+
+nlohmann::json build_profile(nlohmann::json header, const nlohmann::json& stream,
+                             const nlohmann::json& dgemm, const nlohmann::json& pingpong,
+                             const std::vector<nlohmann::json>& dgemm_alternatives) {
+    using ptr = nlohmann::json::json_pointer;
+    nlohmann::json p = std::move(header);
+    const double peak = require_number(dgemm, ptr("/peak_probe/all_cores_gflops"), "dgemm");
+    const double per_core = require_number(dgemm, ptr("/peak_probe/per_core_gflops"), "dgemm");
+    const double triad = require_number(stream, ptr("/best_triad_GBps"), "stream");
+    p["peak_gflops"] = peak;
+    p["peak_gflops_per_core"] = per_core;
+    p["dgemm_gflops"] = require_number(dgemm, ptr("/best_gflops"), "dgemm");
+    p["dgemm_fraction_of_peak"] = p["dgemm_gflops"].get<double>() / peak;
+    p["dgemm_corename"] = dgemm.value("corename", "unknown");
+    p["stream_triad_GBps"] = triad;
+    p["stream_triad_nt_GBps"] = stream.value("best_triad_nt_GBps", 0.0);
+    // Roofline ridge: below this operational intensity a kernel is bandwidth bound.
+    p["ridge_flop_per_byte"] = peak / triad;
+
+    for (const auto& r : stream.at("results"))
+        p["stream_triad_by_threads"].push_back(
+            {{"threads", r.at("threads")},
+             {"affinity", r.at("affinity")},
+             {"best_GBps", r.at("/kernels/triad/best_GBps"_json_pointer)}});
+
+    p["dgemm_coretypes"].push_back(coretype_entry(dgemm));
+    for (const auto& alt : dgemm_alternatives) {
+        auto e = coretype_entry(alt);
+        // The alternative runs skip the probe: rate them against this profile's ceiling.
+        for (auto& r : e["results"]) {
+            const int t = r.value("threads", 1);
+            r["fraction_of_peak"] = r.value("gflops", 0.0) / std::min(per_core * t, peak);
+        }
+        p["dgemm_coretypes"].push_back(std::move(e));
+    }
+    if (dgemm.contains("coretype_advice"))
+        p["dgemm_coretype_advice"] = dgemm["coretype_advice"];
+
+    p["alpha_matrix_s"] = pingpong.at("alpha_matrix_s");
+    p["beta_matrix_s_per_byte"] = pingpong.at("beta_matrix_s_per_byte");
+    p["comm_classes"] = pingpong.value("classes", nlohmann::json::object());
+    p["timestamps"] = {{"stream", stream.value("timestamp", "")},
+                       {"dgemm", dgemm.value("timestamp", "")},
+                       {"pingpong", pingpong.value("timestamp", "")},
+                       {"profile", p.value("timestamp", "")}};
+    p["stream"] = stream;
+    p["dgemm"] = dgemm;
+    p["dgemm_alternatives"] = dgemm_alternatives;
+    p["pingpong"] = pingpong;
+    return p;
+}
+
+} // namespace sphperf::model

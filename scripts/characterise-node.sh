@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# The main job: characterise this node and write results/<hostname>/machine.json.
+#   scripts/characterise-node.sh [--compare-coretypes SkylakeX,Haswell] [--quick] [--no-build]
+# Builds if needed, then runs STREAM, DGEMM + peak probe (and DGEMM again with the OpenBLAS core
+# type it recommends, if any), and ping-pong on one rank per core. Nothing else should run on
+# the machine meanwhile: the figures are timings. --quick is a seconds-long smoke run whose
+# figures mean nothing. SPHPERF_RESULTS_DIR overrides results/.
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build="${SPHPERF_BUILD_DIR:-$root/build}"
+
+usage() {
+    sed -n '2,6p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+    exit "${1:-0}"
+}
+coretypes=""
+quick=0
+build_first=1
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --compare-coretypes) [ $# -ge 2 ] || usage 2; coretypes="$2"; shift 2 ;;
+        --quick) quick=1; shift ;;
+        --no-build) build_first=0; shift ;;
+        -h|--help) usage 0 ;;
+        *) echo "characterise-node.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+    esac
+done
+
+if [ "$build_first" -eq 1 ]; then
+    echo "== building (log: ${TMPDIR:-/tmp}/sphperf-build.log)"
+    bash "$root/scripts/build.sh" >"${TMPDIR:-/tmp}/sphperf-build.log" 2>&1 || {
+        echo "characterise-node.sh: build failed; see ${TMPDIR:-/tmp}/sphperf-build.log" >&2; exit 1; }
+fi
+
+host=$(hostname)
+out="${SPHPERF_RESULTS_DIR:-$root/results}/$host"
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+ranks=$(nproc)
+[ "$ranks" -ge 2 ] || ranks=2
+
+stream_args=()
+dgemm_args=()
+pingpong_args=()
+if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
+    stream_args=(--size 2000000 --reps 3)
+    dgemm_args=(--sizes 300 --reps 2 --probe-reps 1)
+    pingpong_args=(--max-bytes 65536 --max-reps 50)
+fi
+
+echo "== STREAM"
+"$build/bin/stream" "${stream_args[@]}" --json "$work/stream.json"
+echo "== DGEMM"
+"$build/bin/dgemm" "${dgemm_args[@]}" --json "$work/dgemm.json"
+
+suggested=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1])).get("suggested_coretype") or "")' "$work/dgemm.json")
+alts=()
+for ct in $(echo "$suggested,$coretypes" | tr ',' ' '); do
+    [ -f "$work/dgemm_$ct.json" ] && continue
+    echo "== DGEMM with OPENBLAS_CORETYPE=$ct"
+    OPENBLAS_CORETYPE="$ct" "$build/bin/dgemm" "${dgemm_args[@]}" --no-probe --threads "$(nproc)" \
+        --json "$work/dgemm_$ct.json"
+    alts+=(--dgemm-alt "$work/dgemm_$ct.json")
+done
+
+echo "== ping-pong on $ranks ranks"
+bash "$root/scripts/mpirun.sh" -n "$ranks" "$build/bin/pingpong" "${pingpong_args[@]}" \
+    --json "$work/pingpong.json"
+
+mkdir -p "$out"
+"$build/bin/machine-profile" --stream "$work/stream.json" --dgemm "$work/dgemm.json" \
+    "${alts[@]}" --pingpong "$work/pingpong.json" --out "$work/machine.json"
+cp "$work"/*.json "$out/"
+echo "profile: $out/machine.json"

@@ -1,0 +1,172 @@
+// The benchmark executables as a user runs them: tiny sizes, real reports, bad input.
+#include "run.hpp"
+
+#include <gtest/gtest.h>
+
+using namespace sphperf::testing;
+namespace fs = std::filesystem;
+
+namespace {
+const std::string tiny_stream = " --size 200000 --reps 2 --quiet";
+const std::string tiny_dgemm = " --sizes 64,96 --reps 2 --probe-reps 1 --quiet";
+const std::string tiny_pingpong = " --max-bytes 65536 --max-reps 40 --max-seconds 0.2 "
+                                  "--latency-round-trips 20 --bandwidth-round-trips 2 --quiet";
+} // namespace
+
+TEST(StreamCli, TinyRunWritesACompleteReport) {
+    const auto dir = scratch("stream");
+    const auto r = run(bin("stream") + tiny_stream + " --json " + (dir / "s.json").string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto j = load(dir / "s.json");
+    expect_envelope(j, "stream");
+    expect_keys(j, {"/results/0/threads", "/results/0/affinity", "/results/0/triad_nt/best_GBps",
+                    "/results/0/placement/0/cpuset", "/best_triad_GBps", "/valid"});
+    for (const char* k : {"copy", "scale", "add", "triad"})
+        for (const char* f : {"best_GBps", "avg_GBps", "min_s", "avg_s", "max_s"})
+            EXPECT_TRUE(j["results"][0]["kernels"][k].contains(f)) << k << "." << f;
+    EXPECT_TRUE(j["valid"].get<bool>());
+    EXPECT_EQ(j["array_elements"].get<int>(), 200000);
+    expect_figures_sane(j);
+    EXPECT_NE(r.out.find("triad"), std::string::npos); // human table on stdout
+}
+
+TEST(StreamCli, SweepsRequestedThreadsAndAffinities) {
+    const auto dir = scratch("stream_sweep");
+    const auto r = run(bin("stream") + tiny_stream + " --threads 1,2 --affinity compact,scatter" +
+                       " --json " + (dir / "s.json").string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto j = load(dir / "s.json");
+    ASSERT_EQ(j["results"].size(), 4u);
+    EXPECT_EQ(j["results"][3]["threads"], 2);
+    EXPECT_EQ(j["results"][3]["affinity"], "scatter");
+    EXPECT_EQ(j["results"][3]["placement"].size(), 2u);
+    // Each thread is bound to exactly one processing unit, and they differ.
+    EXPECT_NE(j["results"][3]["placement"][0]["cpuset"], j["results"][3]["placement"][1]["cpuset"]);
+}
+
+TEST(DgemmCli, TinyRunWritesACompleteReport) {
+    const auto dir = scratch("dgemm");
+    const auto r = run(bin("dgemm") + tiny_dgemm + " --threads 1 --json " + (dir / "d.json").string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto j = load(dir / "d.json");
+    expect_envelope(j, "dgemm");
+    expect_keys(j, {"/corename", "/results/0/n", "/results/0/threads", "/results/0/gflops",
+                    "/results/0/avg_gflops", "/results/0/fraction_of_peak",
+                    "/peak_probe/per_core_gflops", "/peak_probe/all_cores_gflops"});
+    EXPECT_EQ(j["results"].size(), 2u);
+    EXPECT_TRUE(j["results"][1]["check"]["ok"].get<bool>());
+    expect_figures_sane(j);
+}
+
+TEST(PingpongCli, TwoAndThreeRanks) {
+    for (int ranks : {2, 3}) {
+        const auto dir = scratch("pingpong" + std::to_string(ranks));
+        const auto r = run(mpirun(ranks) + bin("pingpong") + tiny_pingpong + " --json " +
+                           (dir / "p.json").string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto j = load(dir / "p.json");
+        expect_envelope(j, "pingpong");
+        const std::size_t pairs = static_cast<std::size_t>(ranks * (ranks - 1) / 2);
+        ASSERT_EQ(j["pairs"].size(), pairs);
+        expect_keys(j, {"/pairs/0/ranks", "/pairs/0/locality", "/pairs/0/alpha_s",
+                        "/pairs/0/beta_s_per_byte", "/pairs/0/r2", "/pairs/0/breakpoint_bytes",
+                        "/pairs/0/pieces/0/alpha_s", "/pairs/0/pieces/0/beta_s_per_byte",
+                        "/pairs/0/pieces/0/r2", "/pairs/0/pieces/0/max_rel_residual",
+                        "/pairs/0/two_point/alpha_s", "/pairs/0/two_point/beta_s_per_byte",
+                        "/pairs/0/samples/0/bytes", "/pairs/0/samples/0/median_s",
+                        "/pairs/0/samples/0/repetitions", "/alpha_matrix_s",
+                        "/beta_matrix_s_per_byte", "/classes"});
+        EXPECT_EQ(j["alpha_matrix_s"].size(), static_cast<std::size_t>(ranks));
+        EXPECT_EQ(j["pairs"][pairs - 1]["ranks"], nlohmann::json({ranks - 2, ranks - 1}));
+        EXPECT_EQ(j["pairs"][0]["samples"].size(), 17u); // 1 B .. 64 KiB
+        expect_figures_sane(j);
+    }
+}
+
+TEST(MachineProfileCli, MergesTheThreeReports) {
+    const auto dir = scratch("profile");
+    const auto s = dir / "s.json", d = dir / "d.json", p = dir / "p.json", m = dir / "m.json";
+    ASSERT_EQ(run(bin("stream") + tiny_stream + " --threads 1 --json " + s.string()).code, 0);
+    ASSERT_EQ(run(bin("dgemm") + tiny_dgemm + " --threads 1 --json " + d.string()).code, 0);
+    ASSERT_EQ(run(mpirun(2) + bin("pingpong") + tiny_pingpong + " --json " + p.string()).code, 0);
+    const auto r = run(bin("machine-profile") + " --stream " + s.string() + " --dgemm " +
+                       d.string() + " --pingpong " + p.string() + " --out " + m.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto j = load(m);
+    expect_envelope(j, "machine");
+    expect_keys(j, {"/peak_gflops", "/dgemm_gflops", "/stream_triad_GBps", "/ridge_flop_per_byte",
+                    "/stream/results", "/dgemm/results", "/pingpong/pairs", "/alpha_matrix_s",
+                    "/comm_classes"});
+    EXPECT_NEAR(j["ridge_flop_per_byte"].get<double>(),
+                j["peak_gflops"].get<double>() / j["stream_triad_GBps"].get<double>(), 1e-12);
+    // Swapped inputs are refused with a clear error and no output.
+    fs::remove(m);
+    const auto bad = run(bin("machine-profile") + " --stream " + d.string() + " --dgemm " +
+                         d.string() + " --pingpong " + p.string() + " --out " + m.string());
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_EQ(bad.err_lines(), 1) << bad.err;
+    EXPECT_FALSE(fs::exists(m));
+}
+
+// Bad input: exit code 2, one line naming the problem, and no report file.
+struct BadInput {
+    std::string name, command, expect_in_message;
+};
+
+void PrintTo(const BadInput& b, std::ostream* os) { *os << b.name; }
+
+class BadInputTest : public ::testing::TestWithParam<BadInput> {};
+
+TEST_P(BadInputTest, ExitsTwoWithOneLineAndNoFile) {
+    const auto dir = scratch("bad_" + GetParam().name);
+    const auto out = dir / "report.json";
+    std::string cmd = GetParam().command;
+    const auto pos = cmd.find("@OUT@");
+    if (pos != std::string::npos)
+        cmd.replace(pos, 5, out.string());
+    const auto r = run(cmd);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(r.err_lines(), 1) << r.err;
+    EXPECT_NE(r.err.find(GetParam().expect_in_message), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_TRUE(fs::is_empty(dir)) << "left a file behind";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Microbench, BadInputTest,
+    ::testing::Values(
+        BadInput{"stream_negative_size", bin("stream") + " --size -5 --json @OUT@", "-5"},
+        BadInput{"stream_zero_size", bin("stream") + " --size 0 --json @OUT@", "--size 0"},
+        BadInput{"stream_affinity", bin("stream") + " --size 1000 --affinity diagonal --json @OUT@",
+                 "diagonal"},
+        BadInput{"stream_threads", bin("stream") + " --size 1000 --threads 0 --json @OUT@",
+                 "--threads 0"},
+        BadInput{"stream_unwritable", bin("stream") + " --size 1000 --json /nonexistent/dir/s.json",
+                 "/nonexistent/dir/s.json"},
+        BadInput{"stream_unknown_option", bin("stream") + " --sise 1000 --json @OUT@", "sise"},
+        BadInput{"dgemm_negative_size", bin("dgemm") + " --sizes -3 --json @OUT@", "-3"},
+        BadInput{"dgemm_huge", bin("dgemm") + " --sizes 10000000 --json @OUT@", "10000000"},
+        BadInput{"dgemm_unwritable", bin("dgemm") + " --sizes 8 --json /nonexistent/dir/d.json",
+                 "/nonexistent/dir/d.json"},
+        BadInput{"pingpong_one_rank", bin("pingpong") + " --json @OUT@", "at least 2 MPI ranks"},
+        BadInput{"pingpong_one_rank_launcher", mpirun(1) + bin("pingpong") + " --json @OUT@",
+                 "at least 2 MPI ranks"},
+        BadInput{"pingpong_unwritable",
+                 mpirun(2) + bin("pingpong") + " --json /nonexistent/dir/p.json",
+                 "/nonexistent/dir/p.json"},
+        BadInput{"pingpong_bad_size", mpirun(2) + bin("pingpong") + " --max-bytes 1000 --json @OUT@",
+                 "power of two"},
+        BadInput{"profile_missing_input",
+                 bin("machine-profile") + " --stream /nonexistent/s.json --dgemm /nonexistent/d.json "
+                                          "--pingpong /nonexistent/p.json --out @OUT@",
+                 "/nonexistent/s.json"}),
+    [](const auto& info) { return info.param.name; });
+
+TEST(Help, EveryExecutableHasHelp) {
+    for (const char* exe : {"stream", "dgemm", "pingpong", "machine-profile"}) {
+        const auto r = run(bin(exe) + " --help");
+        EXPECT_EQ(r.code, 0) << exe;
+        EXPECT_NE(r.out.find("Usage"), std::string::npos) << exe;
+        EXPECT_TRUE(r.err.empty()) << exe << ": " << r.err;
+    }
+}

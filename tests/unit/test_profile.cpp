@@ -1,0 +1,58 @@
+#include "sphperf/cli.hpp"
+#include "sphperf/model/profile.hpp"
+
+#include <gtest/gtest.h>
+
+using nlohmann::json;
+
+namespace {
+json stream_report() {
+    return {{"benchmark", "stream"},
+            {"best_triad_GBps", 40.0},
+            {"best_triad_nt_GBps", 50.0},
+            {"results",
+             {{{"threads", 1}, {"affinity", "compact"}, {"kernels", {{"triad", {{"best_GBps", 30.0}}}}}},
+              {{"threads", 2}, {"affinity", "compact"}, {"kernels", {{"triad", {{"best_GBps", 40.0}}}}}}}}};
+}
+json dgemm_report() {
+    return {{"benchmark", "dgemm"},
+            {"corename", "Haswell"},
+            {"best_gflops", 60.0},
+            {"peak_probe", {{"per_core_gflops", 50.0}, {"all_cores_gflops", 100.0}}},
+            {"results", {{{"n", 1000}, {"threads", 2}, {"gflops", 60.0}, {"fraction_of_peak", 0.6}}}}};
+}
+json pingpong_report() {
+    return {{"benchmark", "pingpong"},
+            {"alpha_matrix_s", {{nullptr, 1e-6}, {1e-6, nullptr}}},
+            {"beta_matrix_s_per_byte", {{nullptr, 1e-10}, {1e-10, nullptr}}},
+            {"classes", {{"same_l3", {{"pairs", 1}}}}}};
+}
+} // namespace
+
+TEST(Profile, DerivesHeadlineFiguresAndKeepsTheReports) {
+    json alt = dgemm_report();
+    alt.erase("peak_probe");
+    alt["corename"] = "SkylakeX";
+    alt["best_gflops"] = 90.0;
+    alt["results"][0]["gflops"] = 90.0;
+    const json p = sphperf::model::build_profile({{"schema", 1}}, stream_report(), dgemm_report(),
+                                                 pingpong_report(), {alt});
+    EXPECT_DOUBLE_EQ(p["peak_gflops"].get<double>(), 100.0);
+    EXPECT_DOUBLE_EQ(p["dgemm_gflops"].get<double>(), 60.0);
+    EXPECT_DOUBLE_EQ(p["stream_triad_GBps"].get<double>(), 40.0);
+    EXPECT_DOUBLE_EQ(p["ridge_flop_per_byte"].get<double>(), 2.5);
+    EXPECT_DOUBLE_EQ(p["dgemm_fraction_of_peak"].get<double>(), 0.6);
+    ASSERT_EQ(p["dgemm_coretypes"].size(), 2u);
+    EXPECT_DOUBLE_EQ(p["dgemm_coretypes"][1]["results"][0]["fraction_of_peak"].get<double>(), 0.9);
+    EXPECT_EQ(p["stream_triad_by_threads"].size(), 2u);
+    for (const char* key : {"stream", "dgemm", "pingpong", "alpha_matrix_s",
+                            "beta_matrix_s_per_byte", "comm_classes", "timestamps", "schema"})
+        EXPECT_TRUE(p.contains(key)) << key;
+}
+
+TEST(Profile, MissingFigureIsAUsageError) {
+    json d = dgemm_report();
+    d.erase("peak_probe");
+    EXPECT_THROW(sphperf::model::build_profile({}, stream_report(), d, pingpong_report(), {}),
+                 sphperf::UsageError);
+}

@@ -1,0 +1,87 @@
+#include "stream_kernels.hpp"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+namespace st = sphperf::stream;
+
+TEST(Stream, ByteAccountingFollowsReferenceStream) {
+    constexpr std::size_t n = 1000;
+    const double expected[] = {16.0 * n, 16.0 * n, 24.0 * n, 24.0 * n};
+    for (std::size_t k = 0; k < st::kernels.size(); ++k)
+        EXPECT_DOUBLE_EQ(st::bytes_moved<double>(st::kernels[k], n), expected[k])
+            << st::kernels[k].name;
+    EXPECT_DOUBLE_EQ(st::bytes_moved<float>(st::kernels[3], n), 12.0 * n);
+}
+
+namespace {
+struct Arrays {
+    std::vector<double> a, b, c;
+    explicit Arrays(std::size_t n)
+        : a(n, 2 * st::Initial<double>::a), b(n, st::Initial<double>::b),
+          c(n, st::Initial<double>::c) {}
+    void iterate(int times) {
+        const double s = st::Initial<double>::scalar;
+        for (int k = 0; k < times; ++k) {
+            st::copy<double>(a, c);
+            st::scale<double>(c, b, s);
+            st::add<double>(a, b, c);
+            st::triad<double>(a, b, c, s);
+        }
+    }
+};
+} // namespace
+
+TEST(Stream, KernelsMatchTheScalarReplay) {
+    Arrays x(1003);
+    x.iterate(5);
+    const auto v = st::validate<double>(x.a, x.b, x.c, st::expected_values<double>(5));
+    EXPECT_TRUE(v.ok);
+    for (double e : v.rel_error)
+        EXPECT_EQ(e, 0.0);
+}
+
+TEST(Stream, ValidationCatchesOneWrongElement) {
+    Arrays x(1000);
+    x.iterate(3);
+    x.b[517] += 1.0;
+    const auto v = st::validate<double>(x.a, x.b, x.c, st::expected_values<double>(3));
+    EXPECT_FALSE(v.ok);
+    EXPECT_GT(v.rel_error[1], st::validation_epsilon);
+    EXPECT_EQ(v.rel_error[0], 0.0);
+}
+
+TEST(Stream, ValidationCatchesAWrongIterationCount) {
+    Arrays x(100);
+    x.iterate(4);
+    EXPECT_FALSE(st::validate<double>(x.a, x.b, x.c, st::expected_values<double>(3)).ok);
+}
+
+TEST(Stream, NonTemporalTriadEqualsTriad) {
+    constexpr std::size_t n = 1029; // not a multiple of the vector width: exercises the tail
+    alignas(64) static double a[n];
+    std::vector<double> b(n), c(n), ref(n);
+    for (std::size_t j = 0; j < n; ++j) {
+        b[j] = 0.5 * j;
+        c[j] = 1.0 / (j + 1);
+    }
+    st::triad<double>(ref, b, c, 3.0);
+    st::triad_nt(a, b, c, 3.0);
+    for (std::size_t j = 0; j < n; ++j)
+        ASSERT_DOUBLE_EQ(a[j], ref[j]) << j;
+}
+
+TEST(Stream, ChunksPartitionTheArrayOnAlignedBoundaries) {
+    for (std::size_t n : {1ul, 7ul, 64ul, 1000ul, 1001ul})
+        for (int threads = 1; threads <= 5; ++threads) {
+            std::size_t next = 0;
+            for (int t = 0; t < threads; ++t) {
+                const auto r = st::chunk(n, threads, t);
+                EXPECT_EQ(r.begin, next);
+                EXPECT_TRUE(r.begin % 8 == 0 || r.begin == n);
+                next = r.end;
+            }
+            EXPECT_EQ(next, n);
+        }
+}
