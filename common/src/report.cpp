@@ -32,7 +32,7 @@ std::string utc_timestamp() {
     return buf.data();
 }
 
-nlohmann::json report_header(std::string_view benchmark, const Topology& topo) {
+nlohmann::json report_header(std::string_view benchmark, const Topology &topo) {
     return {{"schema", report_schema},
             {"benchmark", benchmark},
             {"git_commit", build::git_commit()},
@@ -46,12 +46,12 @@ nlohmann::json report_header(std::string_view benchmark, const Topology& topo) {
 }
 
 namespace {
-std::filesystem::path temp_path_for(const std::filesystem::path& path) {
+std::filesystem::path temp_path_for(const std::filesystem::path &path) {
     return path.string() + ".tmp." + std::to_string(getpid());
 }
 } // namespace
 
-void JsonSink::check_writable(const std::filesystem::path& path) {
+void JsonSink::check_writable(const std::filesystem::path &path) {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::is_directory(path, ec))
@@ -70,7 +70,7 @@ JsonSink::JsonSink(std::optional<std::filesystem::path> path) : path_(std::move(
         check_writable(*path_);
 }
 
-void JsonSink::write(const nlohmann::json& report) const {
+void JsonSink::write(const nlohmann::json &report) const {
     if (!path_)
         return;
     const auto tmp = temp_path_for(*path_);

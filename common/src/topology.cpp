@@ -19,7 +19,9 @@ Affinity parse_affinity(std::string_view name) {
     throw UsageError("unknown affinity '" + std::string(name) + "', expected compact or scatter");
 }
 
-std::string_view to_string(Affinity a) { return a == Affinity::compact ? "compact" : "scatter"; }
+std::string_view to_string(Affinity a) {
+    return a == Affinity::compact ? "compact" : "scatter";
+}
 
 std::string_view to_string(Locality l) {
     switch (l) {
@@ -38,35 +40,51 @@ std::string_view to_string(Locality l) {
 }
 
 CpuSet::CpuSet() : set_(hwloc_bitmap_alloc()) {}
-CpuSet::CpuSet(const hwloc_bitmap_s* other) : set_(hwloc_bitmap_dup(other)) {}
-CpuSet::CpuSet(const CpuSet& other) : set_(hwloc_bitmap_dup(other.set_)) {}
-CpuSet& CpuSet::operator=(const CpuSet& other) {
+CpuSet::CpuSet(const hwloc_bitmap_s *other) : set_(hwloc_bitmap_dup(other)) {}
+CpuSet::CpuSet(const CpuSet &other) : set_(hwloc_bitmap_dup(other.set_)) {}
+CpuSet &CpuSet::operator=(const CpuSet &other) {
     if (this != &other)
         hwloc_bitmap_copy(set_, other.set_);
     return *this;
 }
-CpuSet::~CpuSet() { hwloc_bitmap_free(set_); }
+CpuSet::~CpuSet() {
+    hwloc_bitmap_free(set_);
+}
 
 std::string CpuSet::to_list() const {
-    char* s = nullptr;
+    char *s = nullptr;
     hwloc_bitmap_list_asprintf(&s, set_);
     std::string out = s ? s : "";
     free(s);
     return out;
 }
-int CpuSet::first() const { return hwloc_bitmap_first(set_); }
-int CpuSet::weight() const { return hwloc_bitmap_weight(set_); }
+int CpuSet::first() const {
+    return hwloc_bitmap_first(set_);
+}
+int CpuSet::weight() const {
+    return hwloc_bitmap_weight(set_);
+}
 
 Topology::Topology() {
     if (hwloc_topology_init(&topo_) != 0 || hwloc_topology_load(topo_) != 0)
         throw std::runtime_error("hwloc could not load the machine topology");
 }
-Topology::~Topology() { hwloc_topology_destroy(topo_); }
+Topology::~Topology() {
+    hwloc_topology_destroy(topo_);
+}
 
-int Topology::packages() const { return hwloc_get_nbobjs_by_type(topo_, HWLOC_OBJ_PACKAGE); }
-int Topology::cores() const { return hwloc_get_nbobjs_by_type(topo_, HWLOC_OBJ_CORE); }
-int Topology::pus() const { return hwloc_get_nbobjs_by_type(topo_, HWLOC_OBJ_PU); }
-int Topology::numa_nodes() const { return hwloc_get_nbobjs_by_type(topo_, HWLOC_OBJ_NUMANODE); }
+int Topology::packages() const {
+    return hwloc_get_nbobjs_by_type(topo_, HWLOC_OBJ_PACKAGE);
+}
+int Topology::cores() const {
+    return hwloc_get_nbobjs_by_type(topo_, HWLOC_OBJ_CORE);
+}
+int Topology::pus() const {
+    return hwloc_get_nbobjs_by_type(topo_, HWLOC_OBJ_PU);
+}
+int Topology::numa_nodes() const {
+    return hwloc_get_nbobjs_by_type(topo_, HWLOC_OBJ_NUMANODE);
+}
 
 namespace {
 std::uint64_t cache_size(hwloc_topology_t topo, hwloc_obj_type_t type) {
@@ -80,7 +98,7 @@ int cache_count(hwloc_topology_t topo, hwloc_obj_type_t type) {
 std::string cpu_model(hwloc_topology_t topo) {
     hwloc_obj_t pkg = hwloc_get_obj_by_type(topo, HWLOC_OBJ_PACKAGE, 0);
     if (pkg)
-        if (const char* m = hwloc_obj_get_info_by_name(pkg, "CPUModel"))
+        if (const char *m = hwloc_obj_get_info_by_name(pkg, "CPUModel"))
             return m;
     return "unknown";
 }
@@ -105,7 +123,7 @@ std::uint64_t Topology::memory_bytes() const {
 
 nlohmann::json Topology::summary() const {
     nlohmann::json caches = nlohmann::json::object();
-    const std::pair<hwloc_obj_type_t, const char*> levels[] = {
+    const std::pair<hwloc_obj_type_t, const char *> levels[] = {
         {HWLOC_OBJ_L1CACHE, "L1d"}, {HWLOC_OBJ_L2CACHE, "L2"}, {HWLOC_OBJ_L3CACHE, "L3"}};
     for (auto [type, name] : levels) {
         const int n = cache_count(topo_, type);
@@ -143,12 +161,12 @@ std::vector<CpuSet> Topology::placement(int threads, Affinity affinity) const {
             hwloc_bitmap_free(raw[t]);
         }
     }
-    for (auto& s : sets)
+    for (auto &s : sets)
         hwloc_bitmap_singlify(s.get()); // one PU each, so SMT siblings never share a thread
     return sets;
 }
 
-void Topology::bind_this_thread(const CpuSet& set) const {
+void Topology::bind_this_thread(const CpuSet &set) const {
     if (hwloc_set_cpubind(topo_, set.get(), HWLOC_CPUBIND_THREAD) != 0)
         throw std::runtime_error("hwloc could not bind a thread to cpuset " + set.to_list());
 }

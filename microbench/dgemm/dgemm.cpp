@@ -46,16 +46,18 @@ struct GemmResult {
     gemm::SpotCheck check;
 };
 
-double matrix_bytes(std::int64_t n) { return 3.0 * 8.0 * static_cast<double>(n) * static_cast<double>(n); }
+double matrix_bytes(std::int64_t n) {
+    return 3.0 * 8.0 * static_cast<double>(n) * static_cast<double>(n);
+}
 
 GemmResult run_gemm(std::size_t n, int threads, int reps) {
     openblas_set_num_threads(threads);
     std::vector<double> a(n * n), b(n * n), c(n * n, 0.0);
     std::mt19937_64 rng(42);
     std::uniform_real_distribution<double> dist(-1.0, 1.0);
-    for (auto& x : a)
+    for (auto &x : a)
         x = dist(rng);
-    for (auto& x : b)
+    for (auto &x : b)
         x = dist(rng);
     const auto nn = static_cast<blasint>(n);
     constexpr double alpha = 1.0, beta = 0.0; // C = alpha A B + beta C with beta 0: 2 n^3 flops
@@ -82,7 +84,7 @@ struct ProbeResult {
 };
 
 // Best of `reps` runs of the FMA chains on `places.size()` bound threads, in GFLOP/s.
-double probe_gflops(const Topology& topo, const std::vector<CpuSet>& places,
+double probe_gflops(const Topology &topo, const std::vector<CpuSet> &places,
                     std::int64_t iterations, int reps) {
     const int threads = static_cast<int>(places.size());
     double best = 0;
@@ -94,7 +96,7 @@ double probe_gflops(const Topology& topo, const std::vector<CpuSet>& places,
         {
             try {
                 topo.bind_this_thread(places[static_cast<std::size_t>(omp_get_thread_num())]);
-            } catch (const std::exception&) {
+            } catch (const std::exception &) {
                 ++bind_failures;
             }
 #pragma omp barrier
@@ -113,7 +115,7 @@ double probe_gflops(const Topology& topo, const std::vector<CpuSet>& places,
     return best;
 }
 
-ProbeResult run_probe(const Topology& topo, int reps) {
+ProbeResult run_probe(const Topology &topo, int reps) {
     ProbeResult p;
     const auto one = topo.placement(1, Affinity::compact);
     // Calibrate so one run lasts >= probe_min_seconds: short runs measure the clock, not the FPU.
@@ -135,15 +137,15 @@ ProbeResult run_probe(const Topology& topo, int reps) {
 }
 
 std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char ch) { return std::tolower(ch); });
+    std::transform(s.begin(), s.end(), s.begin(),
+                   [](unsigned char ch) { return std::tolower(ch); });
     return s;
 }
 
 // OpenBLAS 0.3.21 does not know recent AMD cores and falls back to its AVX2 (Haswell/Zen)
 // kernels even when AVX-512 is there; name the core type that would use it.
-std::optional<std::string> better_coretype(const std::string& corename) {
-    static const std::vector<std::string> avx512_cores{"skylakex", "cooperlake",
-                                                       "sapphirerapids"};
+std::optional<std::string> better_coretype(const std::string &corename) {
+    static const std::vector<std::string> avx512_cores{"skylakex", "cooperlake", "sapphirerapids"};
     const bool cpu_has_avx512 = __builtin_cpu_supports("avx512f") &&
                                 __builtin_cpu_supports("avx512dq") &&
                                 __builtin_cpu_supports("avx512vl");
@@ -154,11 +156,12 @@ std::optional<std::string> better_coretype(const std::string& corename) {
     return "SkylakeX";
 }
 
-Config parse(int argc, char** argv, const Topology& topo) {
+Config parse(int argc, char **argv, const Topology &topo) {
     Config cfg;
     CLI::App app{"DGEMM (cblas_dgemm from OpenBLAS) GFLOP/s over matrix sizes and thread counts, "
                  "with an FMA peak probe giving the attainable compute ceiling."};
-    app.add_option("--sizes", cfg.sizes, "Square matrix sizes (default 1000,2000,4000 as memory allows)")
+    app.add_option("--sizes", cfg.sizes,
+                   "Square matrix sizes (default 1000,2000,4000 as memory allows)")
         ->delimiter(',');
     app.add_option("--threads", cfg.threads, "BLAS thread counts (default 1 and all cores)")
         ->delimiter(',');
@@ -200,14 +203,14 @@ Config parse(int argc, char** argv, const Topology& topo) {
     return cfg;
 }
 
-int run(int argc, char** argv) {
+int run(int argc, char **argv) {
     const Topology topo;
     const Config cfg = parse(argc, argv, topo);
     const JsonSink sink(cfg.json);
     omp_set_dynamic(0);
 
     const std::string corename = openblas_get_corename();
-    const char* env_coretype = std::getenv("OPENBLAS_CORETYPE");
+    const char *env_coretype = std::getenv("OPENBLAS_CORETYPE");
 
     ProbeResult probe;
     if (!cfg.no_probe) {
@@ -233,7 +236,8 @@ int run(int argc, char** argv) {
 
     nlohmann::json report = report_header("dgemm", topo);
     report["corename"] = corename;
-    report["openblas_coretype_env"] = env_coretype ? nlohmann::json(env_coretype) : nlohmann::json();
+    report["openblas_coretype_env"] =
+        env_coretype ? nlohmann::json(env_coretype) : nlohmann::json();
     report["repetitions_timed"] = cfg.reps;
     const auto advice = better_coretype(corename);
     report["suggested_coretype"] = advice ? nlohmann::json(*advice) : nlohmann::json();
@@ -252,7 +256,7 @@ int run(int argc, char** argv) {
                                 {"iterations", probe.iterations}};
     bool all_ok = true;
     double best = 0;
-    for (const auto& r : results) {
+    for (const auto &r : results) {
         const double flops = 2.0 * std::pow(static_cast<double>(r.n), 3);
         nlohmann::json j{{"n", r.n},
                          {"threads", r.threads},
@@ -263,8 +267,10 @@ int run(int argc, char** argv) {
                          {"min_s", r.seconds.min},
                          {"avg_s", r.seconds.avg},
                          {"max_s", r.seconds.max},
-                         {"check", {{"ok", r.check.ok}, {"samples", r.check.checked},
-                                    {"worst_error_to_bound", r.check.worst_ratio}}}};
+                         {"check",
+                          {{"ok", r.check.ok},
+                           {"samples", r.check.checked},
+                           {"worst_error_to_bound", r.check.worst_ratio}}}};
         if (!cfg.no_probe)
             j["fraction_of_peak"] = j["gflops"].get<double>() / ceiling(r.threads);
         best = std::max(best, j["gflops"].get<double>());
@@ -282,11 +288,12 @@ int run(int argc, char** argv) {
                     probe.per_core_gflops, probe.all_cores_gflops, probe.threads);
     std::printf("%6s %7s %10s %10s %10s %9s %6s\n", "n", "threads", "best GF/s", "avg GF/s",
                 "min s", "of peak", "check");
-    for (const auto& j : report["results"])
+    for (const auto &j : report["results"])
         std::printf("%6zu %7d %10.2f %10.2f %10.4f %8.1f%% %6s\n", j["n"].get<std::size_t>(),
                     j["threads"].get<int>(), j["gflops"].get<double>(),
                     j["avg_gflops"].get<double>(), j["min_s"].get<double>(),
-                    j.contains("fraction_of_peak") ? 100 * j["fraction_of_peak"].get<double>() : 0.0,
+                    j.contains("fraction_of_peak") ? 100 * j["fraction_of_peak"].get<double>()
+                                                   : 0.0,
                     j["check"]["ok"].get<bool>() ? "ok" : "FAIL");
     if (advice)
         std::printf("note: %s\n", report["coretype_advice"].get<std::string>().c_str());
@@ -302,6 +309,6 @@ int run(int argc, char** argv) {
 
 } // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char **argv) {
     return sphperf::guarded_main("dgemm", [&] { return run(argc, argv); });
 }

@@ -17,8 +17,8 @@ struct SpotCheck {
 
 // C is m x q, A is m x k, B is k x q, all row-major and dense.
 inline SpotCheck spot_check(std::span<const double> a, std::span<const double> b,
-                            std::span<const double> c, std::size_t m, std::size_t k,
-                            std::size_t q, std::size_t samples, unsigned seed) {
+                            std::span<const double> c, std::size_t m, std::size_t k, std::size_t q,
+                            std::size_t samples, unsigned seed) {
     SpotCheck r;
     std::mt19937_64 rng(seed);
     std::uniform_int_distribution<std::size_t> row(0, m - 1), col(0, q - 1);

@@ -34,8 +34,8 @@ struct Config {
     std::int64_t max_bytes = std::int64_t{16} << 20;
     int min_reps = 20;
     int max_reps = 2000;
-    double max_seconds = 1.0;  // per message size
-    double target_ci = 0.05;   // half-width of the median's 95% CI, relative
+    double max_seconds = 1.0;       // per message size
+    double target_ci = 0.05;        // half-width of the median's 95% CI, relative
     int latency_round_trips = 1000; // thesis two-point estimate: 1 B x 1000
     int bandwidth_round_trips = 10; // ... and one large message x 10
     std::optional<std::filesystem::path> json;
@@ -75,7 +75,7 @@ void quiet_barrier(MPI_Comm comm) {
     }
 }
 
-std::vector<double> message_sizes(const Config& cfg) {
+std::vector<double> message_sizes(const Config &cfg) {
     std::vector<double> sizes;
     for (std::int64_t m = cfg.min_bytes; m <= cfg.max_bytes; m *= 2)
         sizes.push_back(static_cast<double>(m));
@@ -83,7 +83,7 @@ std::vector<double> message_sizes(const Config& cfg) {
 }
 
 // Initiator side of one message size; the partner mirrors it in serve_size.
-SizeResult measure_size(const Config& cfg, std::vector<char>& buf, int bytes, int partner) {
+SizeResult measure_size(const Config &cfg, std::vector<char> &buf, int bytes, int partner) {
     const int count = bytes;
     for (int w = 0; w < warmup_round_trips; ++w) {
         MPI_Send(buf.data(), count, MPI_BYTE, partner, tag_data, MPI_COMM_WORLD);
@@ -112,11 +112,16 @@ SizeResult measure_size(const Config& cfg, std::vector<char>& buf, int bytes, in
     }
     const Interval ci = median_ci95(one_way);
     const Summary s = summarize(one_way);
-    return {static_cast<double>(bytes), s.median, ci.lo, ci.hi, s.min,
-            static_cast<double>(one_way.size()), converged ? 1.0 : 0.0};
+    return {static_cast<double>(bytes),
+            s.median,
+            ci.lo,
+            ci.hi,
+            s.min,
+            static_cast<double>(one_way.size()),
+            converged ? 1.0 : 0.0};
 }
 
-void serve_size(std::vector<char>& buf, int bytes, int initiator) {
+void serve_size(std::vector<char> &buf, int bytes, int initiator) {
     for (int w = 0; w < warmup_round_trips; ++w) {
         MPI_Recv(buf.data(), bytes, MPI_BYTE, initiator, tag_data, MPI_COMM_WORLD,
                  MPI_STATUS_IGNORE);
@@ -134,15 +139,17 @@ void serve_size(std::vector<char>& buf, int bytes, int initiator) {
 }
 
 // The thesis' estimate: time `round_trips` round trips of `bytes`, divide by 2 x round trips.
-double timed_round_trips(std::vector<char>& buf, int bytes, int round_trips, int peer,
+double timed_round_trips(std::vector<char> &buf, int bytes, int round_trips, int peer,
                          bool initiator) {
     const double t0 = MPI_Wtime();
     for (int k = 0; k < round_trips; ++k) {
         if (initiator) {
             MPI_Send(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD);
-            MPI_Recv(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            MPI_Recv(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD,
+                     MPI_STATUS_IGNORE);
         } else {
-            MPI_Recv(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            MPI_Recv(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD,
+                     MPI_STATUS_IGNORE);
             MPI_Send(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD);
         }
     }
@@ -150,7 +157,7 @@ double timed_round_trips(std::vector<char>& buf, int bytes, int round_trips, int
 }
 
 // Runs the pair (i, j) on ranks i and j; returns the result on rank i.
-PairResult run_pair(const Config& cfg, int rank, int i, int j, std::vector<char>& buf) {
+PairResult run_pair(const Config &cfg, int rank, int i, int j, std::vector<char> &buf) {
     PairResult r{i, j, {}, 0, 0};
     const bool initiator = rank == i;
     const int peer = initiator ? j : i;
@@ -171,28 +178,27 @@ PairResult run_pair(const Config& cfg, int rank, int i, int j, std::vector<char>
 }
 
 // Ships a pair result from rank i to rank 0 as flat doubles.
-void send_result(const PairResult& r) {
+void send_result(const PairResult &r) {
     std::vector<double> flat{r.two_point_alpha_s, r.two_point_beta_s_per_byte};
-    for (const auto& s : r.sizes)
-        flat.insert(flat.end(), {s.bytes, s.median_s, s.ci_lo_s, s.ci_hi_s, s.min_s,
-                                 s.repetitions, s.converged});
-    MPI_Send(flat.data(), static_cast<int>(flat.size()), MPI_DOUBLE, 0, tag_result,
-             MPI_COMM_WORLD);
+    for (const auto &s : r.sizes)
+        flat.insert(flat.end(), {s.bytes, s.median_s, s.ci_lo_s, s.ci_hi_s, s.min_s, s.repetitions,
+                                 s.converged});
+    MPI_Send(flat.data(), static_cast<int>(flat.size()), MPI_DOUBLE, 0, tag_result, MPI_COMM_WORLD);
 }
 
 PairResult recv_result(int i, int j, std::size_t n_sizes) {
     std::vector<double> flat(2 + n_sizes * size_result_fields);
-    MPI_Recv(flat.data(), static_cast<int>(flat.size()), MPI_DOUBLE, i, tag_result,
-             MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    MPI_Recv(flat.data(), static_cast<int>(flat.size()), MPI_DOUBLE, i, tag_result, MPI_COMM_WORLD,
+             MPI_STATUS_IGNORE);
     PairResult r{i, j, {}, flat[0], flat[1]};
     for (std::size_t k = 0; k < n_sizes; ++k) {
-        const double* f = &flat[2 + k * size_result_fields];
+        const double *f = &flat[2 + k * size_result_fields];
         r.sizes.push_back({f[0], f[1], f[2], f[3], f[4], f[5], f[6]});
     }
     return r;
 }
 
-std::vector<RankInfo> gather_rank_info(const Topology& topo, int rank, int size) {
+std::vector<RankInfo> gather_rank_info(const Topology &topo, int rank, int size) {
     std::array<char, host_chars> host{};
     std::array<char, cpuset_chars> cpus{};
     const std::string h = hostname();
@@ -201,7 +207,8 @@ std::vector<RankInfo> gather_rank_info(const Topology& topo, int rank, int size)
     std::copy_n(h.begin(), std::min(h.size(), host_chars - 1), host.begin());
     std::copy_n(c.begin(), std::min(c.size(), cpuset_chars - 1), cpus.begin());
     const int last = topo.last_cpu_of_this_thread();
-    std::vector<char> hosts(rank == 0 ? host_chars * size : 0), sets(rank == 0 ? cpuset_chars * size : 0);
+    std::vector<char> hosts(rank == 0 ? host_chars * size : 0),
+        sets(rank == 0 ? cpuset_chars * size : 0);
     std::vector<int> lasts(rank == 0 ? size : 0);
     MPI_Gather(host.data(), host_chars, MPI_CHAR, hosts.data(), host_chars, MPI_CHAR, 0,
                MPI_COMM_WORLD);
@@ -217,10 +224,10 @@ std::vector<RankInfo> gather_rank_info(const Topology& topo, int rank, int size)
 
 // Locality of two ranks: other node by host name, else by the PU each is bound to (or last ran
 // on, when the process is not bound to one core).
-Locality pair_locality(const Topology& topo, const RankInfo& a, const RankInfo& b) {
+Locality pair_locality(const Topology &topo, const RankInfo &a, const RankInfo &b) {
     if (a.host != b.host)
         return Locality::other_node;
-    auto pu_of = [](const RankInfo& r) {
+    auto pu_of = [](const RankInfo &r) {
         int first = -1;
         if (std::sscanf(r.cpuset.c_str(), "%d", &first) == 1 && r.bound)
             return first;
@@ -232,7 +239,7 @@ Locality pair_locality(const Topology& topo, const RankInfo& a, const RankInfo& 
     return topo.classify(pa, pb);
 }
 
-Config parse(int argc, char** argv) {
+Config parse(int argc, char **argv) {
     Config cfg;
     CLI::App app{"MPI ping-pong over every rank pair (one pair at a time): Hockney alpha/beta per "
                  "pair with a piecewise fit at the eager/rendezvous switch, two-point estimates, "
@@ -276,21 +283,26 @@ Config parse(int argc, char** argv) {
     return cfg;
 }
 
-nlohmann::json fit_json(const model::LineFit& f) {
-    return {{"alpha_s", f.alpha_s},         {"beta_s_per_byte", f.beta_s_per_byte},
-            {"r2", f.r2},                   {"max_rel_residual", f.max_rel_residual},
-            {"first_bytes", f.first_bytes}, {"last_bytes", f.last_bytes},
+nlohmann::json fit_json(const model::LineFit &f) {
+    return {{"alpha_s", f.alpha_s},
+            {"beta_s_per_byte", f.beta_s_per_byte},
+            {"r2", f.r2},
+            {"max_rel_residual", f.max_rel_residual},
+            {"first_bytes", f.first_bytes},
+            {"last_bytes", f.last_bytes},
             {"points", f.points}};
 }
 
-nlohmann::json build_report(const Topology& topo, const Config& cfg,
-                            const std::vector<RankInfo>& ranks,
-                            const std::vector<PairResult>& pairs) {
+nlohmann::json build_report(const Topology &topo, const Config &cfg,
+                            const std::vector<RankInfo> &ranks,
+                            const std::vector<PairResult> &pairs) {
     const int size = static_cast<int>(ranks.size());
     nlohmann::json report = report_header("pingpong", topo);
     report["ranks"] = size;
-    report["config"] = {{"min_bytes", cfg.min_bytes},     {"max_bytes", cfg.max_bytes},
-                        {"min_reps", cfg.min_reps},       {"max_reps", cfg.max_reps},
+    report["config"] = {{"min_bytes", cfg.min_bytes},
+                        {"max_bytes", cfg.max_bytes},
+                        {"min_reps", cfg.min_reps},
+                        {"max_reps", cfg.max_reps},
                         {"max_seconds_per_size", cfg.max_seconds},
                         {"target_ci", cfg.target_ci},
                         {"latency_round_trips", cfg.latency_round_trips},
@@ -311,9 +323,9 @@ nlohmann::json build_report(const Topology& topo, const Config& cfg,
         double alpha_sum = 0, alpha_max = 0, beta_sum = 0, beta_max = 0;
     };
     std::map<std::string, ClassStats> classes;
-    for (const auto& p : pairs) {
+    for (const auto &p : pairs) {
         std::vector<MessageSample> samples;
-        for (const auto& s : p.sizes)
+        for (const auto &s : p.sizes)
             samples.push_back({s.bytes, s.median_s});
         const auto fit = model::fit_piecewise(samples);
         const auto loc = std::string(to_string(pair_locality(topo, ranks[p.i], ranks[p.j])));
@@ -331,9 +343,9 @@ nlohmann::json build_report(const Topology& topo, const Config& cfg,
                            {"beta_s_per_byte", p.two_point_beta_s_per_byte},
                            {"latency_bytes", 1},
                            {"bandwidth_bytes", cfg.max_bytes}}}};
-        for (const auto& piece : fit.pieces)
+        for (const auto &piece : fit.pieces)
             j["pieces"].push_back(fit_json(piece));
-        for (const auto& s : p.sizes)
+        for (const auto &s : p.sizes)
             j["samples"].push_back({{"bytes", s.bytes},
                                     {"median_s", s.median_s},
                                     {"ci95_lo_s", s.ci_lo_s},
@@ -344,7 +356,7 @@ nlohmann::json build_report(const Topology& topo, const Config& cfg,
         report["pairs"].push_back(j);
         alpha[p.i][p.j] = alpha[p.j][p.i] = fit.alpha_s();
         beta[p.i][p.j] = beta[p.j][p.i] = fit.beta_s_per_byte();
-        auto& c = classes[loc];
+        auto &c = classes[loc];
         ++c.pairs;
         c.alpha_sum += fit.alpha_s();
         c.beta_sum += fit.beta_s_per_byte();
@@ -353,7 +365,7 @@ nlohmann::json build_report(const Topology& topo, const Config& cfg,
     }
     report["alpha_matrix_s"] = alpha;
     report["beta_matrix_s_per_byte"] = beta;
-    for (const auto& [name, c] : classes)
+    for (const auto &[name, c] : classes)
         report["classes"][name] = {{"pairs", c.pairs},
                                    {"alpha_s_avg", c.alpha_sum / c.pairs},
                                    {"alpha_s_max", c.alpha_max},
@@ -362,12 +374,12 @@ nlohmann::json build_report(const Topology& topo, const Config& cfg,
     return report;
 }
 
-void print_report(const nlohmann::json& report) {
+void print_report(const nlohmann::json &report) {
     std::printf("ping-pong: %d ranks, %zu pairs\n", report["ranks"].get<int>(),
                 report["pairs"].size());
     std::printf("%-7s %-13s %10s %10s %8s %11s %12s %12s\n", "pair", "locality", "alpha us",
                 "1/beta GB/s", "R^2", "break B", "2pt alpha us", "2pt GB/s");
-    for (const auto& p : report["pairs"])
+    for (const auto &p : report["pairs"])
         std::printf("%d-%-5d %-13s %10.3f %10.2f %8.4f %11.0f %12.3f %12.2f\n",
                     p["ranks"][0].get<int>(), p["ranks"][1].get<int>(),
                     p["locality"].get<std::string>().c_str(), p["alpha_s"].get<double>() * 1e6,
@@ -375,18 +387,18 @@ void print_report(const nlohmann::json& report) {
                     p["breakpoint_bytes"].get<double>(),
                     p["two_point"]["alpha_s"].get<double>() * 1e6,
                     1e-9 / p["two_point"]["beta_s_per_byte"].get<double>());
-    const auto& first = report["pairs"][0];
+    const auto &first = report["pairs"][0];
     std::printf("\nsamples of pair %d-%d (one-way time)\n%10s %12s %12s %8s\n",
                 first["ranks"][0].get<int>(), first["ranks"][1].get<int>(), "bytes", "median us",
                 "MB/s", "reps");
-    for (const auto& s : first["samples"])
+    for (const auto &s : first["samples"])
         std::printf("%10.0f %12.3f %12.1f %8d%s\n", s["bytes"].get<double>(),
                     s["median_s"].get<double>() * 1e6,
                     s["bytes"].get<double>() / s["median_s"].get<double>() * 1e-6,
                     s["repetitions"].get<int>(), s["converged"].get<bool>() ? "" : " (capped)");
 }
 
-int run(int argc, char** argv, int rank, int size) {
+int run(int argc, char **argv, int rank, int size) {
     const Topology topo;
     // Every rank parses the same arguments, so every rank reaches the same verdict.
     const Config cfg = parse(argc, argv);
@@ -399,7 +411,7 @@ int run(int argc, char** argv, int rank, int size) {
     if (rank == 0 && cfg.json) {
         try {
             JsonSink::check_writable(*cfg.json);
-        } catch (const UsageError& e) {
+        } catch (const UsageError &e) {
             path_ok = 0;
             path_error = e.what();
         }
@@ -413,7 +425,7 @@ int run(int argc, char** argv, int rank, int size) {
 
     std::vector<RankInfo> ranks = gather_rank_info(topo, rank, size);
     if (rank == 0)
-        for (auto& r : ranks) {
+        for (auto &r : ranks) {
             int first = -1, last = -1;
             // A single-core binding is "N" (one PU) or a range inside one core.
             r.bound = std::sscanf(r.cpuset.c_str(), "%d-%d", &first, &last) >= 1 &&
@@ -454,7 +466,7 @@ int run(int argc, char** argv, int rank, int size) {
 
 } // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char **argv) {
     MPI_Init(&argc, &argv);
     int rank = 0, size = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);

@@ -38,7 +38,7 @@ struct Config {
 
 // Default-initialised (untouched) aligned storage, so first touch happens in the bound threads.
 struct AlignedDelete {
-    void operator()(Real* p) const { ::operator delete[](p, std::align_val_t{alignment_bytes}); }
+    void operator()(Real *p) const { ::operator delete[](p, std::align_val_t{alignment_bytes}); }
 };
 using Buffer = std::unique_ptr<Real[], AlignedDelete>;
 Buffer allocate(std::size_t n) {
@@ -61,7 +61,7 @@ struct ConfigResult {
 };
 
 // Runs `body(thread, range)` on `threads` OpenMP threads and returns the wall time of the region.
-template <class Body> double timed_parallel(std::size_t n, int threads, Body&& body) {
+template <class Body> double timed_parallel(std::size_t n, int threads, Body &&body) {
     const double t0 = wall_seconds();
 #pragma omp parallel num_threads(threads)
     {
@@ -71,15 +71,15 @@ template <class Body> double timed_parallel(std::size_t n, int threads, Body&& b
     return wall_seconds() - t0;
 }
 
-ConfigResult run_config(const Topology& topo, std::size_t n, int threads, Affinity affinity,
+ConfigResult run_config(const Topology &topo, std::size_t n, int threads, Affinity affinity,
                         int reps) {
     ConfigResult r{threads, affinity, {}, {}, {}, {}, {}};
     const auto places = topo.placement(threads, affinity);
     Buffer a = allocate(n), b = allocate(n), c = allocate(n);
-    auto span_of = [n](Buffer& buf, st::Range rg) {
+    auto span_of = [n](Buffer &buf, st::Range rg) {
         return std::span<Real>(buf.get() + rg.begin, rg.end - rg.begin);
     };
-    auto cspan_of = [n](Buffer& buf, st::Range rg) {
+    auto cspan_of = [n](Buffer &buf, st::Range rg) {
         return std::span<const Real>(buf.get() + rg.begin, rg.end - rg.begin);
     };
 
@@ -89,7 +89,7 @@ ConfigResult run_config(const Topology& topo, std::size_t n, int threads, Affini
     timed_parallel(n, threads, [&](int t, st::Range rg) {
         try { // an exception must not leave an OpenMP region
             topo.bind_this_thread(places[static_cast<std::size_t>(t)]);
-        } catch (const std::exception&) {
+        } catch (const std::exception &) {
             ++bind_failures;
         }
         if (t == 0)
@@ -114,8 +114,9 @@ ConfigResult run_config(const Topology& topo, std::size_t n, int threads, Affini
         const std::array<double, 4> t{
             timed_parallel(n, threads,
                            [&](int, st::Range rg) { st::copy(cspan_of(a, rg), span_of(c, rg)); }),
-            timed_parallel(n, threads,
-                           [&](int, st::Range rg) { st::scale(cspan_of(c, rg), span_of(b, rg), s); }),
+            timed_parallel(
+                n, threads,
+                [&](int, st::Range rg) { st::scale(cspan_of(c, rg), span_of(b, rg), s); }),
             timed_parallel(n, threads,
                            [&](int, st::Range rg) {
                                st::add(cspan_of(a, rg), cspan_of(b, rg), span_of(c, rg));
@@ -156,18 +157,22 @@ ConfigResult run_config(const Topology& topo, std::size_t n, int threads, Affini
 
 nlohmann::json kernel_json(std::span<const double> times, double bytes) {
     const Summary s = summarize(times);
-    return {{"bytes_per_iteration", bytes}, {"best_GBps", bytes / s.min * 1e-9},
-            {"avg_GBps", bytes / s.avg * 1e-9}, {"min_s", s.min},
-            {"avg_s", s.avg},  {"max_s", s.max}, {"median_s", s.median}};
+    return {{"bytes_per_iteration", bytes},
+            {"best_GBps", bytes / s.min * 1e-9},
+            {"avg_GBps", bytes / s.avg * 1e-9},
+            {"min_s", s.min},
+            {"avg_s", s.avg},
+            {"max_s", s.max},
+            {"median_s", s.median}};
 }
 
-nlohmann::json validation_json(const st::Validation& v) {
+nlohmann::json validation_json(const st::Validation &v) {
     return {{"ok", v.ok},
             {"rel_error", {{"a", v.rel_error[0]}, {"b", v.rel_error[1]}, {"c", v.rel_error[2]}}},
             {"epsilon", st::validation_epsilon}};
 }
 
-Config parse(int argc, char** argv, const Topology& topo) {
+Config parse(int argc, char **argv, const Topology &topo) {
     Config cfg;
     CLI::App app{"STREAM memory bandwidth (copy, scale, add, triad, non-temporal triad) over a "
                  "thread sweep with compact and scatter affinity bound by hwloc."};
@@ -194,14 +199,14 @@ Config parse(int argc, char** argv, const Topology& topo) {
         if (t < 1 || t > topo.pus())
             throw UsageError("--threads " + std::to_string(t) + " is outside 1.." +
                              std::to_string(topo.pus()) + " (processing units on this node)");
-    for (const auto& a : cfg.affinities)
+    for (const auto &a : cfg.affinities)
         parse_affinity(a);
     if (cfg.affinities.empty())
         throw UsageError("--affinity needs at least one of compact, scatter");
     return cfg;
 }
 
-std::size_t array_elements(const Config& cfg, const Topology& topo) {
+std::size_t array_elements(const Config &cfg, const Topology &topo) {
     std::size_t n = 0;
     if (cfg.size > 0) {
         n = static_cast<std::size_t>(cfg.size);
@@ -219,7 +224,7 @@ std::size_t array_elements(const Config& cfg, const Topology& topo) {
     return n;
 }
 
-void print_table(const std::vector<ConfigResult>& results, std::size_t n, int reps,
+void print_table(const std::vector<ConfigResult> &results, std::size_t n, int reps,
                  std::uint64_t llc) {
     std::printf("STREAM: %zu doubles per array (%.1f MiB), %d timed repetitions (+1 dropped), "
                 "last-level cache %.1f MiB\n",
@@ -227,14 +232,14 @@ void print_table(const std::vector<ConfigResult>& results, std::size_t n, int re
                 static_cast<double>(llc) / (1 << 20));
     std::printf("%7s %-8s %-8s %10s %10s %11s %11s %11s\n", "threads", "affinity", "kernel",
                 "best GB/s", "avg GB/s", "min s", "avg s", "max s");
-    auto row = [](const ConfigResult& r, std::string_view name, std::span<const double> t,
+    auto row = [](const ConfigResult &r, std::string_view name, std::span<const double> t,
                   double bytes) {
         const Summary s = summarize(t);
         std::printf("%7d %-8s %-8s %10.2f %10.2f %11.6f %11.6f %11.6f\n", r.threads,
                     std::string(to_string(r.affinity)).c_str(), std::string(name).c_str(),
                     bytes / s.min * 1e-9, bytes / s.avg * 1e-9, s.min, s.avg, s.max);
     };
-    for (const auto& r : results) {
+    for (const auto &r : results) {
         for (std::size_t k = 0; k < st::kernels.size(); ++k)
             row(r, st::kernels[k].name, r.times[k], st::bytes_moved<Real>(st::kernels[k], n));
         row(r, "triad_nt", r.nt_times,
@@ -242,7 +247,7 @@ void print_table(const std::vector<ConfigResult>& results, std::size_t n, int re
     }
 }
 
-int run(int argc, char** argv) {
+int run(int argc, char **argv) {
     const Topology topo;
     const Config cfg = parse(argc, argv, topo);
     const JsonSink sink(cfg.json);
@@ -252,7 +257,7 @@ int run(int argc, char** argv) {
     std::vector<ConfigResult> results;
     const std::size_t total = cfg.threads.size() * cfg.affinities.size();
     for (int threads : cfg.threads)
-        for (const auto& aff : cfg.affinities) {
+        for (const auto &aff : cfg.affinities) {
             results.push_back(run_config(topo, n, threads, parse_affinity(aff), cfg.reps));
             if (!cfg.quiet)
                 std::fprintf(stderr, "stream: %zu/%zu done (threads=%d affinity=%s)\n",
@@ -266,10 +271,10 @@ int run(int argc, char** argv) {
     report["repetitions_timed"] = cfg.reps;
     report["repetitions_dropped"] = 1;
     report["nt_store_isa"] = st::nt_store_isa();
-    const auto& triad_spec = st::kernels[static_cast<int>(st::Kernel::triad)];
+    const auto &triad_spec = st::kernels[static_cast<int>(st::Kernel::triad)];
     double best_triad = 0, best_nt = 0;
     bool all_valid = true;
-    for (const auto& r : results) {
+    for (const auto &r : results) {
         nlohmann::json j{{"threads", r.threads}, {"affinity", to_string(r.affinity)}};
         for (std::size_t k = 0; k < st::kernels.size(); ++k)
             j["kernels"][st::kernels[k].name] =
@@ -277,7 +282,7 @@ int run(int argc, char** argv) {
         j["triad_nt"] = kernel_json(r.nt_times, st::bytes_moved<Real>(triad_spec, n));
         j["validation"] = validation_json(r.validation);
         j["validation_nt"] = validation_json(r.validation_nt);
-        for (const auto& p : r.placement)
+        for (const auto &p : r.placement)
             j["placement"].push_back(
                 {{"thread", p.thread}, {"cpuset", p.cpuset}, {"last_cpu", p.last_cpu}});
         best_triad = std::max(best_triad, j["kernels"]["triad"]["best_GBps"].get<double>());
@@ -291,8 +296,9 @@ int run(int argc, char** argv) {
 
     print_table(results, n, cfg.reps, topo.last_level_cache_bytes());
     if (!all_valid) {
-        std::fprintf(stderr, "stream: validation FAILED: results differ from the scalar replay "
-                             "by more than %g; no report written\n",
+        std::fprintf(stderr,
+                     "stream: validation FAILED: results differ from the scalar replay "
+                     "by more than %g; no report written\n",
                      st::validation_epsilon);
         return exit_failure;
     }
@@ -302,6 +308,6 @@ int run(int argc, char** argv) {
 
 } // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char **argv) {
     return sphperf::guarded_main("stream", [&] { return run(argc, argv); });
 }

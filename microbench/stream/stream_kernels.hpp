@@ -29,7 +29,7 @@ inline constexpr std::array<KernelSpec, 4> kernels{{{Kernel::copy, "copy", 1, 1}
                                                     {Kernel::add, "add", 2, 1},
                                                     {Kernel::triad, "triad", 2, 1}}};
 
-template <class T> constexpr double bytes_moved(const KernelSpec& k, std::size_t n) {
+template <class T> constexpr double bytes_moved(const KernelSpec &k, std::size_t n) {
     return static_cast<double>(k.arrays_read + k.arrays_written) * sizeof(T) *
            static_cast<double>(n);
 }
@@ -80,12 +80,13 @@ inline void triad_nt(std::span<double> a, std::span<const double> b, std::span<c
 #if defined(__AVX512F__)
     const __m512d vs = _mm512_set1_pd(s);
     for (; j + 8 <= a.size(); j += 8)
-        _mm512_stream_pd(&a[j], _mm512_fmadd_pd(vs, _mm512_loadu_pd(&c[j]), _mm512_loadu_pd(&b[j])));
+        _mm512_stream_pd(&a[j],
+                         _mm512_fmadd_pd(vs, _mm512_loadu_pd(&c[j]), _mm512_loadu_pd(&b[j])));
 #elif defined(__AVX__)
     const __m256d vs = _mm256_set1_pd(s);
     for (; j + 4 <= a.size(); j += 4)
-        _mm256_stream_pd(&a[j],
-                         _mm256_add_pd(_mm256_loadu_pd(&b[j]), _mm256_mul_pd(vs, _mm256_loadu_pd(&c[j]))));
+        _mm256_stream_pd(&a[j], _mm256_add_pd(_mm256_loadu_pd(&b[j]),
+                                              _mm256_mul_pd(vs, _mm256_loadu_pd(&c[j]))));
 #elif defined(__SSE2__)
     const __m128d vs = _mm_set1_pd(s);
     for (; j + 2 <= a.size(); j += 2)
@@ -123,7 +124,7 @@ template <class T> std::array<T, 3> expected_values(int iterations) {
 
 template <class T>
 Validation validate(std::span<const T> a, std::span<const T> b, std::span<const T> c,
-                    const std::array<T, 3>& expected) {
+                    const std::array<T, 3> &expected) {
     Validation v;
     const std::array<std::span<const T>, 3> arrays{a, b, c};
     v.ok = true;

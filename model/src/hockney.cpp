@@ -8,13 +8,15 @@
 namespace sphperf::model {
 
 namespace {
-double weight(const MessageSample& s) { return 1.0 / (s.seconds * s.seconds); }
+double weight(const MessageSample &s) {
+    return 1.0 / (s.seconds * s.seconds);
+}
 
 // Weighted R^2 and residual statistics of a prediction over samples.
-void score(std::span<const MessageSample> samples, auto&& predict, double& r2, double& max_rel,
-           double& ssr) {
+void score(std::span<const MessageSample> samples, auto &&predict, double &r2, double &max_rel,
+           double &ssr) {
     double sw = 0, swy = 0;
-    for (const auto& s : samples) {
+    for (const auto &s : samples) {
         sw += weight(s);
         swy += weight(s) * s.seconds;
     }
@@ -22,7 +24,7 @@ void score(std::span<const MessageSample> samples, auto&& predict, double& r2, d
     double sst = 0;
     ssr = 0;
     max_rel = 0;
-    for (const auto& s : samples) {
+    for (const auto &s : samples) {
         const double e = predict(s.bytes) - s.seconds;
         ssr += weight(s) * e * e;
         sst += weight(s) * (s.seconds - mean) * (s.seconds - mean);
@@ -36,7 +38,7 @@ LineFit fit_line(std::span<const MessageSample> samples) {
     if (samples.size() < 2)
         throw std::invalid_argument("a Hockney fit needs at least 2 message sizes");
     double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
-    for (const auto& s : samples) {
+    for (const auto &s : samples) {
         if (!(s.seconds > 0) || !std::isfinite(s.seconds))
             throw std::invalid_argument("a Hockney fit needs positive, finite times");
         const double w = weight(s);
@@ -46,7 +48,7 @@ LineFit fit_line(std::span<const MessageSample> samples) {
         sxx += w * s.bytes * s.bytes;
         sxy += w * s.bytes * s.seconds;
     }
-    const bool distinct = std::any_of(samples.begin(), samples.end(), [&](const auto& s) {
+    const bool distinct = std::any_of(samples.begin(), samples.end(), [&](const auto &s) {
         return s.bytes != samples.front().bytes;
     });
     const double det = sw * sxx - sx * sx;
@@ -58,8 +60,8 @@ LineFit fit_line(std::span<const MessageSample> samples) {
     f.points = samples.size();
     f.first_bytes = samples.front().bytes;
     f.last_bytes = samples.back().bytes;
-    score(samples, [&](double m) { return f.predict(m); }, f.r2, f.max_rel_residual,
-          f.weighted_ssr);
+    score(
+        samples, [&](double m) { return f.predict(m); }, f.r2, f.max_rel_residual, f.weighted_ssr);
     return f;
 }
 
@@ -72,7 +74,7 @@ double PiecewiseFit::predict(double bytes) const {
 PiecewiseFit fit_piecewise(std::span<const MessageSample> samples, std::size_t min_points,
                            double min_gain) {
     if (!std::is_sorted(samples.begin(), samples.end(),
-                        [](const auto& a, const auto& b) { return a.bytes < b.bytes; }))
+                        [](const auto &a, const auto &b) { return a.bytes < b.bytes; }))
         throw std::invalid_argument("Hockney samples must be sorted by size");
     PiecewiseFit fit;
     fit.single = fit_line(samples);
@@ -93,7 +95,8 @@ PiecewiseFit fit_piecewise(std::span<const MessageSample> samples, std::size_t m
         }
     }
     double ssr = 0;
-    score(samples, [&](double m) { return fit.predict(m); }, fit.r2, fit.max_rel_residual, ssr);
+    score(
+        samples, [&](double m) { return fit.predict(m); }, fit.r2, fit.max_rel_residual, ssr);
     return fit;
 }
 

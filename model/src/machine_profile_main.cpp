@@ -15,7 +15,7 @@ struct Config {
     std::vector<std::filesystem::path> dgemm_alternatives;
 };
 
-int run(int argc, char** argv) {
+int run(int argc, char **argv) {
     Config cfg;
     CLI::App app{"Merge the stream, dgemm and pingpong reports into one machine profile with "
                  "peak GFLOP/s, STREAM bandwidth, the roofline ridge point and the Hockney "
@@ -35,25 +35,28 @@ int run(int argc, char** argv) {
     const auto dgemm = model::load_report(cfg.dgemm, "dgemm");
     const auto pingpong = model::load_report(cfg.pingpong, "pingpong");
     std::vector<nlohmann::json> alts;
-    for (const auto& a : cfg.dgemm_alternatives)
+    for (const auto &a : cfg.dgemm_alternatives)
         alts.push_back(model::load_report(a, "dgemm"));
     const auto profile =
         model::build_profile(report_header("machine", topo), stream, dgemm, pingpong, alts);
     sink.write(profile);
 
-    std::printf("machine profile of %s (%s, %d cores)\n", profile["host"].get<std::string>().c_str(),
+    std::printf("machine profile of %s (%s, %d cores)\n",
+                profile["host"].get<std::string>().c_str(),
                 profile["topology"]["cpu_model"].get<std::string>().c_str(),
                 profile["topology"]["cores"].get<int>());
     std::printf("  peak (FMA probe)   %8.1f GFLOP/s (%.1f per core)\n",
-                profile["peak_gflops"].get<double>(), profile["peak_gflops_per_core"].get<double>());
-    for (const auto& c : profile["dgemm_coretypes"])
+                profile["peak_gflops"].get<double>(),
+                profile["peak_gflops_per_core"].get<double>());
+    for (const auto &c : profile["dgemm_coretypes"])
         std::printf("  DGEMM %-12s %8.1f GFLOP/s\n", c["corename"].get<std::string>().c_str(),
                     c["best_gflops"].get<double>());
     std::printf("  STREAM triad       %8.1f GB/s (non-temporal %.1f)\n",
                 profile["stream_triad_GBps"].get<double>(),
                 profile["stream_triad_nt_GBps"].get<double>());
-    std::printf("  ridge point        %8.2f flop/byte\n", profile["ridge_flop_per_byte"].get<double>());
-    for (const auto& [name, c] : profile["comm_classes"].items())
+    std::printf("  ridge point        %8.2f flop/byte\n",
+                profile["ridge_flop_per_byte"].get<double>());
+    for (const auto &[name, c] : profile["comm_classes"].items())
         std::printf("  MPI %-14s alpha %.3f us, 1/beta %.2f GB/s (%d pairs, max avg)\n",
                     name.c_str(), c["alpha_s_max"].get<double>() * 1e6,
                     1e-9 / c["beta_s_per_byte_max"].get<double>(), c["pairs"].get<int>());
@@ -63,6 +66,6 @@ int run(int argc, char** argv) {
 
 } // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char **argv) {
     return sphperf::guarded_main("machine-profile", [&] { return run(argc, argv); });
 }

@@ -6,7 +6,7 @@
 
 namespace sphperf::model {
 
-nlohmann::json load_report(const std::filesystem::path& path, std::string_view benchmark) {
+nlohmann::json load_report(const std::filesystem::path &path, std::string_view benchmark) {
     std::ifstream in(path);
     if (!in)
         throw UsageError("cannot read " + std::string(benchmark) + " report '" + path.string() +
@@ -14,7 +14,7 @@ nlohmann::json load_report(const std::filesystem::path& path, std::string_view b
     nlohmann::json j;
     try {
         in >> j;
-    } catch (const nlohmann::json::exception& e) {
+    } catch (const nlohmann::json::exception &e) {
         throw UsageError("'" + path.string() + "' is not valid JSON (" + e.what() + ")");
     }
     if (!j.is_object() || j.value("benchmark", "") != benchmark)
@@ -24,16 +24,16 @@ nlohmann::json load_report(const std::filesystem::path& path, std::string_view b
 }
 
 namespace {
-double require_number(const nlohmann::json& j, const nlohmann::json::json_pointer& ptr,
+double require_number(const nlohmann::json &j, const nlohmann::json::json_pointer &ptr,
                       std::string_view what) {
     if (!j.contains(ptr) || !j.at(ptr).is_number())
         throw UsageError(std::string(what) + " report lacks the number " + ptr.to_string());
     return j.at(ptr).get<double>();
 }
 
-nlohmann::json coretype_entry(const nlohmann::json& dgemm) {
+nlohmann::json coretype_entry(const nlohmann::json &dgemm) {
     double best_fraction = 0;
-    for (const auto& r : dgemm.value("results", nlohmann::json::array()))
+    for (const auto &r : dgemm.value("results", nlohmann::json::array()))
         best_fraction = std::max(best_fraction, r.value("fraction_of_peak", 0.0));
     return {{"corename", dgemm.value("corename", "unknown")},
             {"coretype_env", dgemm.value("openblas_coretype_env", nlohmann::json())},
@@ -42,9 +42,9 @@ nlohmann::json coretype_entry(const nlohmann::json& dgemm) {
 }
 } // namespace
 
-nlohmann::json build_profile(nlohmann::json header, const nlohmann::json& stream,
-                             const nlohmann::json& dgemm, const nlohmann::json& pingpong,
-                             const std::vector<nlohmann::json>& dgemm_alternatives) {
+nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream,
+                             const nlohmann::json &dgemm, const nlohmann::json &pingpong,
+                             const std::vector<nlohmann::json> &dgemm_alternatives) {
     using ptr = nlohmann::json::json_pointer;
     nlohmann::json p = std::move(header);
     const double peak = require_number(dgemm, ptr("/peak_probe/all_cores_gflops"), "dgemm");
@@ -60,17 +60,17 @@ nlohmann::json build_profile(nlohmann::json header, const nlohmann::json& stream
     // Roofline ridge: below this operational intensity a kernel is bandwidth bound.
     p["ridge_flop_per_byte"] = peak / triad;
 
-    for (const auto& r : stream.at("results"))
+    for (const auto &r : stream.at("results"))
         p["stream_triad_by_threads"].push_back(
             {{"threads", r.at("threads")},
              {"affinity", r.at("affinity")},
              {"best_GBps", r.at("/kernels/triad/best_GBps"_json_pointer)}});
 
     p["dgemm_coretypes"].push_back(coretype_entry(dgemm));
-    for (const auto& alt : dgemm_alternatives) {
+    for (const auto &alt : dgemm_alternatives) {
         auto e = coretype_entry(alt);
         // The alternative runs skip the probe: rate them against this profile's ceiling.
-        for (auto& r : e["results"]) {
+        for (auto &r : e["results"]) {
             const int t = r.value("threads", 1);
             r["fraction_of_peak"] = r.value("gflops", 0.0) / std::min(per_core * t, peak);
         }

@@ -23,14 +23,14 @@ struct Run {
     }
 };
 
-inline std::string slurp(const std::filesystem::path& p) {
+inline std::string slurp(const std::filesystem::path &p) {
     std::ifstream in(p);
     std::stringstream s;
     s << in.rdbuf();
     return s.str();
 }
 
-inline Run run(const std::string& cmd) {
+inline Run run(const std::string &cmd) {
     static int counter = 0;
     const auto base = std::filesystem::temp_directory_path() /
                       ("sphperf_run_" + std::to_string(getpid()) + "_" + std::to_string(counter++));
@@ -45,13 +45,16 @@ inline Run run(const std::string& cmd) {
     return r;
 }
 
-inline std::string bin(const std::string& name) { return std::string(SPHPERF_BIN_DIR) + "/" + name; }
+inline std::string bin(const std::string &name) {
+    return std::string(SPHPERF_BIN_DIR) + "/" + name;
+}
 inline std::string mpirun(int ranks) {
-    return "bash " + std::string(SPHPERF_SCRIPTS_DIR) + "/mpirun.sh -n " + std::to_string(ranks) + " ";
+    return "bash " + std::string(SPHPERF_SCRIPTS_DIR) + "/mpirun.sh -n " + std::to_string(ranks) +
+           " ";
 }
 
 // A fresh scratch directory per test.
-inline std::filesystem::path scratch(const std::string& name) {
+inline std::filesystem::path scratch(const std::string &name) {
     const auto d = std::filesystem::temp_directory_path() /
                    ("sphperf_test_" + name + "_" + std::to_string(getpid()));
     std::filesystem::remove_all(d);
@@ -59,17 +62,17 @@ inline std::filesystem::path scratch(const std::string& name) {
     return d;
 }
 
-inline nlohmann::json load(const std::filesystem::path& p) {
+inline nlohmann::json load(const std::filesystem::path &p) {
     std::ifstream in(p);
     return nlohmann::json::parse(in);
 }
 
 // Every number under `j` is finite; every key ending in _s, _GBps or _gflops is positive, except
 // under `fits_only` keys (fitted intercepts of single pieces may extrapolate below zero).
-inline void expect_figures_sane(const nlohmann::json& j, const std::string& where = "",
+inline void expect_figures_sane(const nlohmann::json &j, const std::string &where = "",
                                 bool positive = true) {
     if (j.is_object()) {
-        for (const auto& [k, v] : j.items()) {
+        for (const auto &[k, v] : j.items()) {
             const bool unit = k.ends_with("_s") || k.ends_with("_GBps") || k.ends_with("_gflops");
             if (positive && unit && v.is_number()) {
                 EXPECT_GT(v.get<double>(), 0.0) << where << "/" << k;
@@ -85,12 +88,12 @@ inline void expect_figures_sane(const nlohmann::json& j, const std::string& wher
     }
 }
 
-inline void expect_keys(const nlohmann::json& j, std::initializer_list<const char*> pointers) {
-    for (const char* p : pointers)
+inline void expect_keys(const nlohmann::json &j, std::initializer_list<const char *> pointers) {
+    for (const char *p : pointers)
         EXPECT_TRUE(j.contains(nlohmann::json::json_pointer(p))) << "missing " << p;
 }
 
-inline void expect_envelope(const nlohmann::json& j, const std::string& benchmark) {
+inline void expect_envelope(const nlohmann::json &j, const std::string &benchmark) {
     expect_keys(j, {"/schema", "/benchmark", "/git_commit", "/host", "/topology/cores",
                     "/topology/packages", "/build/flags", "/build/compiler", "/timestamp"});
     EXPECT_EQ(j.value("benchmark", ""), benchmark);

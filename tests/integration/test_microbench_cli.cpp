@@ -21,8 +21,8 @@ TEST(StreamCli, TinyRunWritesACompleteReport) {
     expect_envelope(j, "stream");
     expect_keys(j, {"/results/0/threads", "/results/0/affinity", "/results/0/triad_nt/best_GBps",
                     "/results/0/placement/0/cpuset", "/best_triad_GBps", "/valid"});
-    for (const char* k : {"copy", "scale", "add", "triad"})
-        for (const char* f : {"best_GBps", "avg_GBps", "min_s", "avg_s", "max_s"})
+    for (const char *k : {"copy", "scale", "add", "triad"})
+        for (const char *f : {"best_GBps", "avg_GBps", "min_s", "avg_s", "max_s"})
             EXPECT_TRUE(j["results"][0]["kernels"][k].contains(f)) << k << "." << f;
     EXPECT_TRUE(j["valid"].get<bool>());
     EXPECT_EQ(j["array_elements"].get<int>(), 200000);
@@ -46,7 +46,8 @@ TEST(StreamCli, SweepsRequestedThreadsAndAffinities) {
 
 TEST(DgemmCli, TinyRunWritesACompleteReport) {
     const auto dir = scratch("dgemm");
-    const auto r = run(bin("dgemm") + tiny_dgemm + " --threads 1 --json " + (dir / "d.json").string());
+    const auto r =
+        run(bin("dgemm") + tiny_dgemm + " --threads 1 --json " + (dir / "d.json").string());
     ASSERT_EQ(r.code, 0) << r.err;
     const auto j = load(dir / "d.json");
     expect_envelope(j, "dgemm");
@@ -113,7 +114,9 @@ struct BadInput {
     std::string name, command, expect_in_message;
 };
 
-void PrintTo(const BadInput& b, std::ostream* os) { *os << b.name; }
+void PrintTo(const BadInput &b, std::ostream *os) {
+    *os << b.name;
+}
 
 class BadInputTest : public ::testing::TestWithParam<BadInput> {};
 
@@ -154,16 +157,17 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"pingpong_unwritable",
                  mpirun(2) + bin("pingpong") + " --json /nonexistent/dir/p.json",
                  "/nonexistent/dir/p.json"},
-        BadInput{"pingpong_bad_size", mpirun(2) + bin("pingpong") + " --max-bytes 1000 --json @OUT@",
-                 "power of two"},
+        BadInput{"pingpong_bad_size",
+                 mpirun(2) + bin("pingpong") + " --max-bytes 1000 --json @OUT@", "power of two"},
         BadInput{"profile_missing_input",
-                 bin("machine-profile") + " --stream /nonexistent/s.json --dgemm /nonexistent/d.json "
-                                          "--pingpong /nonexistent/p.json --out @OUT@",
+                 bin("machine-profile") +
+                     " --stream /nonexistent/s.json --dgemm /nonexistent/d.json "
+                     "--pingpong /nonexistent/p.json --out @OUT@",
                  "/nonexistent/s.json"}),
-    [](const auto& info) { return info.param.name; });
+    [](const auto &info) { return info.param.name; });
 
 TEST(Help, EveryExecutableHasHelp) {
-    for (const char* exe : {"stream", "dgemm", "pingpong", "machine-profile"}) {
+    for (const char *exe : {"stream", "dgemm", "pingpong", "machine-profile"}) {
         const auto r = run(bin(exe) + " --help");
         EXPECT_EQ(r.code, 0) << exe;
         EXPECT_NE(r.out.find("Usage"), std::string::npos) << exe;

@@ -8,8 +8,8 @@
 using sphperf::gemm::spot_check;
 
 namespace {
-std::vector<double> naive(const std::vector<double>& a, const std::vector<double>& b,
-                          std::size_t m, std::size_t k, std::size_t q) {
+std::vector<double> naive(const std::vector<double> &a, const std::vector<double> &b, std::size_t m,
+                          std::size_t k, std::size_t q) {
     std::vector<double> c(m * q, 0.0);
     for (std::size_t i = 0; i < m; ++i)
         for (std::size_t l = 0; l < k; ++l)
@@ -29,7 +29,7 @@ TEST(GemmCheck, AcceptsACorrectProductAndRejectsAWrongOne) {
     auto c = naive(a, b, m, k, q);
     EXPECT_TRUE(spot_check(a, b, c, m, k, q, m * q * 4, 1).ok);
     // A transposed B (a classic row/column-major slip) must fail.
-    for (auto& x : c)
+    for (auto &x : c)
         x = 0;
     for (std::size_t i = 0; i < m; ++i)
         for (std::size_t j = 0; j < q; ++j)

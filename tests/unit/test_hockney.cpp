@@ -69,8 +69,7 @@ TEST(Hockney, NoBreakOnAStraightLine) {
 
 TEST(Hockney, RejectsDegenerateInput) {
     EXPECT_THROW(fit_line(std::vector<MessageSample>{{8, 1e-6}}), std::invalid_argument);
-    EXPECT_THROW(fit_line(std::vector<MessageSample>{{8, 1e-6}, {8, 2e-6}}),
-                 std::invalid_argument);
+    EXPECT_THROW(fit_line(std::vector<MessageSample>{{8, 1e-6}, {8, 2e-6}}), std::invalid_argument);
     EXPECT_THROW(fit_line(std::vector<MessageSample>{{8, 1e-6}, {16, 0}}), std::invalid_argument);
     EXPECT_THROW(fit_piecewise(std::vector<MessageSample>{{16, 1e-6}, {8, 1e-6}}),
                  std::invalid_argument);

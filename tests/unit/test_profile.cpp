@@ -11,15 +11,20 @@ json stream_report() {
             {"best_triad_GBps", 40.0},
             {"best_triad_nt_GBps", 50.0},
             {"results",
-             {{{"threads", 1}, {"affinity", "compact"}, {"kernels", {{"triad", {{"best_GBps", 30.0}}}}}},
-              {{"threads", 2}, {"affinity", "compact"}, {"kernels", {{"triad", {{"best_GBps", 40.0}}}}}}}}};
+             {{{"threads", 1},
+               {"affinity", "compact"},
+               {"kernels", {{"triad", {{"best_GBps", 30.0}}}}}},
+              {{"threads", 2},
+               {"affinity", "compact"},
+               {"kernels", {{"triad", {{"best_GBps", 40.0}}}}}}}}};
 }
 json dgemm_report() {
-    return {{"benchmark", "dgemm"},
-            {"corename", "Haswell"},
-            {"best_gflops", 60.0},
-            {"peak_probe", {{"per_core_gflops", 50.0}, {"all_cores_gflops", 100.0}}},
-            {"results", {{{"n", 1000}, {"threads", 2}, {"gflops", 60.0}, {"fraction_of_peak", 0.6}}}}};
+    return {
+        {"benchmark", "dgemm"},
+        {"corename", "Haswell"},
+        {"best_gflops", 60.0},
+        {"peak_probe", {{"per_core_gflops", 50.0}, {"all_cores_gflops", 100.0}}},
+        {"results", {{{"n", 1000}, {"threads", 2}, {"gflops", 60.0}, {"fraction_of_peak", 0.6}}}}};
 }
 json pingpong_report() {
     return {{"benchmark", "pingpong"},
@@ -45,7 +50,7 @@ TEST(Profile, DerivesHeadlineFiguresAndKeepsTheReports) {
     ASSERT_EQ(p["dgemm_coretypes"].size(), 2u);
     EXPECT_DOUBLE_EQ(p["dgemm_coretypes"][1]["results"][0]["fraction_of_peak"].get<double>(), 0.9);
     EXPECT_EQ(p["stream_triad_by_threads"].size(), 2u);
-    for (const char* key : {"stream", "dgemm", "pingpong", "alpha_matrix_s",
+    for (const char *key : {"stream", "dgemm", "pingpong", "alpha_matrix_s",
                             "beta_matrix_s_per_byte", "comm_classes", "timestamps", "schema"})
         EXPECT_TRUE(p.contains(key)) << key;
 }

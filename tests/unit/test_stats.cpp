@@ -23,7 +23,7 @@ TEST(Stats, MedianConfidenceIntervalCoversTheTrueMedianAboutNinetyFivePercent) {
     constexpr int trials = 2000;
     for (int t = 0; t < trials; ++t) {
         std::vector<double> v(60);
-        for (auto& x : v)
+        for (auto &x : v)
             x = d(rng);
         const auto ci = sphperf::median_ci95(v);
         covered += ci.lo <= true_median && true_median <= ci.hi;

@@ -25,18 +25,18 @@ struct ExitRequest {
 };
 
 // Parses argv; on --help prints and requests exit 0, on a parse error throws UsageError.
-inline void parse_cli(CLI::App& app, int argc, char** argv) {
+inline void parse_cli(CLI::App &app, int argc, char **argv) {
     try {
         app.parse(argc, argv);
-    } catch (const CLI::CallForHelp&) {
+    } catch (const CLI::CallForHelp &) {
         std::cout << app.help();
         throw ExitRequest{0};
-    } catch (const CLI::CallForAllHelp&) {
+    } catch (const CLI::CallForAllHelp &) {
         std::cout << app.help("", CLI::AppFormatMode::All);
         throw ExitRequest{0};
-    } catch (const CLI::ParseError& e) {
+    } catch (const CLI::ParseError &e) {
         std::string msg = e.what();
-        for (auto& c : msg)
+        for (auto &c : msg)
             if (c == '\n')
                 c = ' ';
         throw UsageError(msg + " (see --help)");
@@ -44,15 +44,15 @@ inline void parse_cli(CLI::App& app, int argc, char** argv) {
 }
 
 // Runs a program body and maps exceptions to exit codes with a one-line message on stderr.
-template <class Body> int guarded_main(std::string_view program, Body&& body) {
+template <class Body> int guarded_main(std::string_view program, Body &&body) {
     try {
         return body();
-    } catch (const ExitRequest& e) {
+    } catch (const ExitRequest &e) {
         return e.code;
-    } catch (const UsageError& e) {
+    } catch (const UsageError &e) {
         std::cerr << program << ": error: " << e.what() << '\n';
         return exit_usage;
-    } catch (const std::exception& e) {
+    } catch (const std::exception &e) {
         std::cerr << program << ": fatal: " << e.what() << '\n';
         return exit_failure;
     }

@@ -25,26 +25,26 @@ std::string_view to_string(Locality l);
 class CpuSet {
 public:
     CpuSet();
-    explicit CpuSet(const hwloc_bitmap_s* other);
-    CpuSet(const CpuSet& other);
-    CpuSet& operator=(const CpuSet& other);
+    explicit CpuSet(const hwloc_bitmap_s *other);
+    CpuSet(const CpuSet &other);
+    CpuSet &operator=(const CpuSet &other);
     ~CpuSet();
 
-    hwloc_bitmap_s* get() const { return set_; }
+    hwloc_bitmap_s *get() const { return set_; }
     std::string to_list() const; // "0", "0-3", "0,2"
     int first() const;
     int weight() const;
 
 private:
-    hwloc_bitmap_s* set_;
+    hwloc_bitmap_s *set_;
 };
 
 class Topology {
 public:
     Topology();
     ~Topology();
-    Topology(const Topology&) = delete;
-    Topology& operator=(const Topology&) = delete;
+    Topology(const Topology &) = delete;
+    Topology &operator=(const Topology &) = delete;
 
     int packages() const;
     int cores() const;
@@ -60,7 +60,7 @@ public:
     // threads as far apart as the topology allows (hwloc_distrib). More threads than cores wrap.
     std::vector<CpuSet> placement(int threads, Affinity affinity) const;
 
-    void bind_this_thread(const CpuSet& set) const;
+    void bind_this_thread(const CpuSet &set) const;
     CpuSet this_thread_binding() const;
     CpuSet this_process_binding() const;
     int last_cpu_of_this_thread() const;
@@ -69,7 +69,7 @@ public:
     Locality classify(int pu_a, int pu_b) const;
 
 private:
-    hwloc_topology* topo_;
+    hwloc_topology *topo_;
 };
 
 } // namespace sphperf

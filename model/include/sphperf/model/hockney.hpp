@@ -30,7 +30,7 @@ struct LineFit {
 LineFit fit_line(std::span<const MessageSample> samples);
 
 struct PiecewiseFit {
-    LineFit single;           // one line over everything, for comparison
+    LineFit single;              // one line over everything, for comparison
     std::vector<LineFit> pieces; // 1 piece (no break found) or 2 (small, large)
     double breakpoint_bytes = 0; // largest size of the small-message piece; 0 when no break
     double r2 = 0;               // weighted R^2 of the whole model

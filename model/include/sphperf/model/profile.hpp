@@ -10,12 +10,12 @@
 namespace sphperf::model {
 
 // Reads a benchmark report and checks it is the expected kind; throws UsageError naming the file.
-nlohmann::json load_report(const std::filesystem::path& path, std::string_view benchmark);
+nlohmann::json load_report(const std::filesystem::path &path, std::string_view benchmark);
 
 // `header` is the envelope of the profile itself (schema, commit, host, topology).
 // `dgemm_alternatives` are DGEMM reports run with another OpenBLAS core type (may be empty).
-nlohmann::json build_profile(nlohmann::json header, const nlohmann::json& stream,
-                             const nlohmann::json& dgemm, const nlohmann::json& pingpong,
-                             const std::vector<nlohmann::json>& dgemm_alternatives);
+nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream,
+                             const nlohmann::json &dgemm, const nlohmann::json &pingpong,
+                             const std::vector<nlohmann::json> &dgemm_alternatives);
 
 } // namespace sphperf::model
