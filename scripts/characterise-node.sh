@@ -45,7 +45,7 @@ pingpong_args=()
 if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
     stream_args=(--size 2000000 --reps 3)
     dgemm_args=(--sizes 300 --reps 2 --probe-reps 1)
-    pingpong_args=(--max-bytes 65536 --max-reps 50)
+    pingpong_args=(--max-bytes 65536 --max-samples 50)
 fi
 
 echo "== STREAM"

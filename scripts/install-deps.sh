@@ -2,6 +2,8 @@
 # Installs the Debian packages sphperf needs, only those missing. Idempotent and non-interactive:
 # CI and every fresh machine get their dependencies from here.
 set -euo pipefail
+# --with-reference-tools also installs likwid and NetPIPE, which scripts/compare-reference.py runs
+# beside ours; they are comparison tools, not dependencies of sphperf.
 
 packages=(
     build-essential cmake pkg-config git
@@ -13,6 +15,13 @@ packages=(
     libcli11-dev
     python3-matplotlib
 )
+
+if [ "${1:-}" = "--with-reference-tools" ]; then
+    packages+=(likwid netpipe-openmpi)
+elif [ -n "${1:-}" ]; then
+    echo "install-deps: unknown argument '$1' (expected --with-reference-tools or nothing)" >&2
+    exit 2
+fi
 
 missing=()
 for p in "${packages[@]}"; do

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <type_traits>
 #include <vector>
 
 namespace {
@@ -25,15 +26,15 @@ constexpr int tag_data = 1;
 constexpr int tag_control = 2;
 constexpr int tag_result = 3;
 constexpr int warmup_round_trips = 5;
-constexpr int chunk_round_trips = 10; // convergence is checked after each chunk
+constexpr int chunk_samples = 10; // convergence is checked after each chunk of samples
 constexpr std::size_t host_chars = 256;
 constexpr std::size_t cpuset_chars = 256;
 
 struct Config {
     std::int64_t min_bytes = 1;
     std::int64_t max_bytes = std::int64_t{16} << 20;
-    int min_reps = 20;
-    int max_reps = 2000;
+    int min_samples = 20;
+    int max_samples = 1000;
     double max_seconds = 1.0;       // per message size
     double target_ci = 0.05;        // half-width of the median's 95% CI, relative
     int latency_round_trips = 1000; // thesis two-point estimate: 1 B x 1000
@@ -44,9 +45,11 @@ struct Config {
 
 struct SizeResult {
     double bytes = 0, median_s = 0, ci_lo_s = 0, ci_hi_s = 0, min_s = 0;
-    double repetitions = 0, converged = 0;
+    double repetitions = 0; // round trips timed
+    double samples = 0;     // batch means the median is taken over
+    double batch = 0;       // round trips per sample
+    double converged = 0;
 };
-constexpr int size_result_fields = 7;
 
 struct PairResult {
     int i = 0, j = 0;
@@ -82,67 +85,13 @@ std::vector<double> message_sizes(const Config &cfg) {
     return sizes;
 }
 
-// Initiator side of one message size; the partner mirrors it in serve_size.
-SizeResult measure_size(const Config &cfg, std::vector<char> &buf, int bytes, int partner) {
-    const int count = bytes;
-    for (int w = 0; w < warmup_round_trips; ++w) {
-        MPI_Send(buf.data(), count, MPI_BYTE, partner, tag_data, MPI_COMM_WORLD);
-        MPI_Recv(buf.data(), count, MPI_BYTE, partner, tag_data, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-    }
-    std::vector<double> one_way;
-    const double start = MPI_Wtime();
-    int more = 1;
-    bool converged = false;
-    while (more) {
-        for (int k = 0; k < chunk_round_trips; ++k) {
-            const double t0 = MPI_Wtime();
-            MPI_Send(buf.data(), count, MPI_BYTE, partner, tag_data, MPI_COMM_WORLD);
-            MPI_Recv(buf.data(), count, MPI_BYTE, partner, tag_data, MPI_COMM_WORLD,
-                     MPI_STATUS_IGNORE);
-            one_way.push_back((MPI_Wtime() - t0) / 2);
-        }
-        const double med = median(one_way);
-        const Interval ci = median_ci95(one_way);
-        const double half = 0.5 * (ci.hi - ci.lo);
-        converged = static_cast<int>(one_way.size()) >= cfg.min_reps && half <= cfg.target_ci * med;
-        const bool capped = static_cast<int>(one_way.size()) >= cfg.max_reps ||
-                            MPI_Wtime() - start >= cfg.max_seconds;
-        more = !(converged || capped);
-        MPI_Send(&more, 1, MPI_INT, partner, tag_control, MPI_COMM_WORLD);
-    }
-    const Interval ci = median_ci95(one_way);
-    const Summary s = summarize(one_way);
-    return {static_cast<double>(bytes),
-            s.median,
-            ci.lo,
-            ci.hi,
-            s.min,
-            static_cast<double>(one_way.size()),
-            converged ? 1.0 : 0.0};
-}
+// Each sample times a batch of round trips lasting >= this, so the timer's own cost (tens of ns
+// on a VM) stays below 1% even for sub-microsecond latencies, as OSU and NetPIPE do.
+constexpr double min_batch_seconds = 10e-6;
+constexpr int max_batch = 4096;
 
-void serve_size(std::vector<char> &buf, int bytes, int initiator) {
-    for (int w = 0; w < warmup_round_trips; ++w) {
-        MPI_Recv(buf.data(), bytes, MPI_BYTE, initiator, tag_data, MPI_COMM_WORLD,
-                 MPI_STATUS_IGNORE);
-        MPI_Send(buf.data(), bytes, MPI_BYTE, initiator, tag_data, MPI_COMM_WORLD);
-    }
-    int more = 1;
-    while (more) {
-        for (int k = 0; k < chunk_round_trips; ++k) {
-            MPI_Recv(buf.data(), bytes, MPI_BYTE, initiator, tag_data, MPI_COMM_WORLD,
-                     MPI_STATUS_IGNORE);
-            MPI_Send(buf.data(), bytes, MPI_BYTE, initiator, tag_data, MPI_COMM_WORLD);
-        }
-        MPI_Recv(&more, 1, MPI_INT, initiator, tag_control, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-    }
-}
-
-// The thesis' estimate: time `round_trips` round trips of `bytes`, divide by 2 x round trips.
-double timed_round_trips(std::vector<char> &buf, int bytes, int round_trips, int peer,
-                         bool initiator) {
-    const double t0 = MPI_Wtime();
-    for (int k = 0; k < round_trips; ++k) {
+void round_trips(std::vector<char> &buf, int bytes, int count, int peer, bool initiator) {
+    for (int k = 0; k < count; ++k) {
         if (initiator) {
             MPI_Send(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD);
             MPI_Recv(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD,
@@ -153,7 +102,69 @@ double timed_round_trips(std::vector<char> &buf, int bytes, int round_trips, int
             MPI_Send(buf.data(), bytes, MPI_BYTE, peer, tag_data, MPI_COMM_WORLD);
         }
     }
-    return (MPI_Wtime() - t0) / (2.0 * round_trips);
+}
+
+// Initiator side of one message size; the partner mirrors it in serve_size.
+SizeResult measure_size(const Config &cfg, std::vector<char> &buf, int bytes, int partner) {
+    round_trips(buf, bytes, warmup_round_trips, partner, true);
+    // Size the batch from a short probe, then tell the partner.
+    const double t_probe = MPI_Wtime();
+    round_trips(buf, bytes, warmup_round_trips, partner, true);
+    const double rtt = (MPI_Wtime() - t_probe) / warmup_round_trips;
+    int batch = static_cast<int>(std::ceil(min_batch_seconds / std::max(rtt, 1e-9)));
+    batch = std::clamp(batch, 1, max_batch);
+    MPI_Send(&batch, 1, MPI_INT, partner, tag_control, MPI_COMM_WORLD);
+
+    std::vector<double> one_way;
+    const double start = MPI_Wtime();
+    int more = 1;
+    bool converged = false;
+    while (more) {
+        for (int k = 0; k < chunk_samples; ++k) {
+            const double t0 = MPI_Wtime();
+            round_trips(buf, bytes, batch, partner, true);
+            one_way.push_back((MPI_Wtime() - t0) / (2.0 * batch));
+        }
+        const double med = median(one_way);
+        const Interval ci = median_ci95(one_way);
+        const double half = 0.5 * (ci.hi - ci.lo);
+        converged =
+            static_cast<int>(one_way.size()) >= cfg.min_samples && half <= cfg.target_ci * med;
+        const bool capped = static_cast<int>(one_way.size()) >= cfg.max_samples ||
+                            MPI_Wtime() - start >= cfg.max_seconds;
+        more = !(converged || capped);
+        MPI_Send(&more, 1, MPI_INT, partner, tag_control, MPI_COMM_WORLD);
+    }
+    const Interval ci = median_ci95(one_way);
+    const Summary s = summarize(one_way);
+    const double n = static_cast<double>(one_way.size());
+    return {static_cast<double>(bytes),
+            s.median,
+            ci.lo,
+            ci.hi,
+            s.min,
+            n * batch,
+            n,
+            static_cast<double>(batch),
+            converged ? 1.0 : 0.0};
+}
+
+void serve_size(std::vector<char> &buf, int bytes, int initiator) {
+    round_trips(buf, bytes, 2 * warmup_round_trips, initiator, false);
+    int batch = 1;
+    MPI_Recv(&batch, 1, MPI_INT, initiator, tag_control, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    int more = 1;
+    while (more) {
+        round_trips(buf, bytes, chunk_samples * batch, initiator, false);
+        MPI_Recv(&more, 1, MPI_INT, initiator, tag_control, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    }
+}
+
+// The thesis' estimate: time `count` round trips of `bytes`, divide by 2 x count.
+double timed_round_trips(std::vector<char> &buf, int bytes, int count, int peer, bool initiator) {
+    const double t0 = MPI_Wtime();
+    round_trips(buf, bytes, count, peer, initiator);
+    return (MPI_Wtime() - t0) / (2.0 * count);
 }
 
 // Runs the pair (i, j) on ranks i and j; returns the result on rank i.
@@ -177,24 +188,23 @@ PairResult run_pair(const Config &cfg, int rank, int i, int j, std::vector<char>
     return r;
 }
 
-// Ships a pair result from rank i to rank 0 as flat doubles.
+// Ships a pair result from rank i to rank 0: the two-point figures, then the per-size records as
+// raw bytes (same binary on one node or a homogeneous cluster).
+static_assert(std::is_trivially_copyable_v<SizeResult>);
+
 void send_result(const PairResult &r) {
-    std::vector<double> flat{r.two_point_alpha_s, r.two_point_beta_s_per_byte};
-    for (const auto &s : r.sizes)
-        flat.insert(flat.end(), {s.bytes, s.median_s, s.ci_lo_s, s.ci_hi_s, s.min_s, s.repetitions,
-                                 s.converged});
-    MPI_Send(flat.data(), static_cast<int>(flat.size()), MPI_DOUBLE, 0, tag_result, MPI_COMM_WORLD);
+    const std::array<double, 2> two_point{r.two_point_alpha_s, r.two_point_beta_s_per_byte};
+    MPI_Send(two_point.data(), 2, MPI_DOUBLE, 0, tag_result, MPI_COMM_WORLD);
+    MPI_Send(r.sizes.data(), static_cast<int>(r.sizes.size() * sizeof(SizeResult)), MPI_BYTE, 0,
+             tag_result, MPI_COMM_WORLD);
 }
 
 PairResult recv_result(int i, int j, std::size_t n_sizes) {
-    std::vector<double> flat(2 + n_sizes * size_result_fields);
-    MPI_Recv(flat.data(), static_cast<int>(flat.size()), MPI_DOUBLE, i, tag_result, MPI_COMM_WORLD,
-             MPI_STATUS_IGNORE);
-    PairResult r{i, j, {}, flat[0], flat[1]};
-    for (std::size_t k = 0; k < n_sizes; ++k) {
-        const double *f = &flat[2 + k * size_result_fields];
-        r.sizes.push_back({f[0], f[1], f[2], f[3], f[4], f[5], f[6]});
-    }
+    std::array<double, 2> two_point{};
+    MPI_Recv(two_point.data(), 2, MPI_DOUBLE, i, tag_result, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    PairResult r{i, j, std::vector<SizeResult>(n_sizes), two_point[0], two_point[1]};
+    MPI_Recv(r.sizes.data(), static_cast<int>(n_sizes * sizeof(SizeResult)), MPI_BYTE, i,
+             tag_result, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
     return r;
 }
 
@@ -246,8 +256,10 @@ Config parse(int argc, char **argv) {
                  "and locality classes. Run under mpirun with >= 2 ranks (scripts/mpirun.sh)."};
     app.add_option("--min-bytes", cfg.min_bytes, "Smallest message (power of two)");
     app.add_option("--max-bytes", cfg.max_bytes, "Largest message (power of two)");
-    app.add_option("--min-reps", cfg.min_reps, "Round trips per size before convergence is tested");
-    app.add_option("--max-reps", cfg.max_reps, "Round trips per size at most");
+    app.add_option("--min-samples", cfg.min_samples,
+                   "Timed samples per size before convergence is tested (each sample is a "
+                   "batch of round trips lasting >= 10 us)");
+    app.add_option("--max-samples", cfg.max_samples, "Timed samples per size at most");
     app.add_option("--max-seconds", cfg.max_seconds, "Time per message size at most");
     app.add_option("--target-ci", cfg.target_ci,
                    "Stop when the median's 95% CI half-width is below this fraction");
@@ -269,11 +281,12 @@ Config parse(int argc, char **argv) {
     if (cfg.max_bytes < cfg.min_bytes)
         throw UsageError("--max-bytes " + std::to_string(cfg.max_bytes) + " is below --min-bytes " +
                          std::to_string(cfg.min_bytes));
-    if (cfg.min_reps < chunk_round_trips)
-        throw UsageError("--min-reps " + std::to_string(cfg.min_reps) + " is below " +
-                         std::to_string(chunk_round_trips));
-    if (cfg.max_reps < cfg.min_reps)
-        throw UsageError("--max-reps " + std::to_string(cfg.max_reps) + " is below --min-reps");
+    if (cfg.min_samples < chunk_samples)
+        throw UsageError("--min-samples " + std::to_string(cfg.min_samples) + " is below " +
+                         std::to_string(chunk_samples));
+    if (cfg.max_samples < cfg.min_samples)
+        throw UsageError("--max-samples " + std::to_string(cfg.max_samples) +
+                         " is below --min-samples " + std::to_string(cfg.min_samples));
     if (!(cfg.max_seconds > 0))
         throw UsageError("--max-seconds " + std::to_string(cfg.max_seconds) + " is not positive");
     if (!(cfg.target_ci > 0 && cfg.target_ci < 1))
@@ -301,8 +314,9 @@ nlohmann::json build_report(const Topology &topo, const Config &cfg,
     report["ranks"] = size;
     report["config"] = {{"min_bytes", cfg.min_bytes},
                         {"max_bytes", cfg.max_bytes},
-                        {"min_reps", cfg.min_reps},
-                        {"max_reps", cfg.max_reps},
+                        {"min_samples", cfg.min_samples},
+                        {"max_samples", cfg.max_samples},
+                        {"min_batch_s", min_batch_seconds},
                         {"max_seconds_per_size", cfg.max_seconds},
                         {"target_ci", cfg.target_ci},
                         {"latency_round_trips", cfg.latency_round_trips},
@@ -352,6 +366,8 @@ nlohmann::json build_report(const Topology &topo, const Config &cfg,
                                     {"ci95_hi_s", s.ci_hi_s},
                                     {"min_s", s.min_s},
                                     {"repetitions", static_cast<int>(s.repetitions)},
+                                    {"samples", static_cast<int>(s.samples)},
+                                    {"round_trips_per_sample", static_cast<int>(s.batch)},
                                     {"converged", s.converged > 0}});
         report["pairs"].push_back(j);
         alpha[p.i][p.j] = alpha[p.j][p.i] = fit.alpha_s();
@@ -388,14 +404,16 @@ void print_report(const nlohmann::json &report) {
                     p["two_point"]["alpha_s"].get<double>() * 1e6,
                     1e-9 / p["two_point"]["beta_s_per_byte"].get<double>());
     const auto &first = report["pairs"][0];
-    std::printf("\nsamples of pair %d-%d (one-way time)\n%10s %12s %12s %8s\n",
+    std::printf("\nsamples of pair %d-%d (one-way time = round trip / 2)\n%10s %12s %12s %8s "
+                "%6s\n",
                 first["ranks"][0].get<int>(), first["ranks"][1].get<int>(), "bytes", "median us",
-                "MB/s", "reps");
+                "MB/s", "samples", "batch");
     for (const auto &s : first["samples"])
-        std::printf("%10.0f %12.3f %12.1f %8d%s\n", s["bytes"].get<double>(),
+        std::printf("%10.0f %12.3f %12.1f %8d %6d%s\n", s["bytes"].get<double>(),
                     s["median_s"].get<double>() * 1e6,
                     s["bytes"].get<double>() / s["median_s"].get<double>() * 1e-6,
-                    s["repetitions"].get<int>(), s["converged"].get<bool>() ? "" : " (capped)");
+                    s["samples"].get<int>(), s["round_trips_per_sample"].get<int>(),
+                    s["converged"].get<bool>() ? "" : " (capped)");
 }
 
 int run(int argc, char **argv, int rank, int size) {

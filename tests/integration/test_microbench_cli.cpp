@@ -9,7 +9,7 @@ namespace fs = std::filesystem;
 namespace {
 const std::string tiny_stream = " --size 200000 --reps 2 --quiet";
 const std::string tiny_dgemm = " --sizes 64,96 --reps 2 --probe-reps 1 --quiet";
-const std::string tiny_pingpong = " --max-bytes 65536 --max-reps 40 --max-seconds 0.2 "
+const std::string tiny_pingpong = " --max-bytes 65536 --max-samples 40 --max-seconds 0.2 "
                                   "--latency-round-trips 20 --bandwidth-round-trips 2 --quiet";
 } // namespace
 

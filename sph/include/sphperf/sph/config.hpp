@@ -1,0 +1,91 @@
+#pragma once
+// Everything a run is made of, parsed once in main: setup, grid, boundary, physics parameters.
+#include "sphperf/sph/kernel.hpp"
+
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace sphperf::sph {
+
+enum class Setup { dambreak, still, column };
+enum class GridKind { list, table };
+enum class BoundaryKind { mirror, fixed };
+
+Setup parse_setup(std::string_view s);
+GridKind parse_grid(std::string_view s);
+BoundaryKind parse_boundary(std::string_view s);
+std::string_view to_string(Setup s);
+std::string_view to_string(GridKind g);
+std::string_view to_string(BoundaryKind b);
+
+// Weakly compressible SPH parameters. Values and reasons are in sph/README.md.
+struct Physics {
+    double rho0 = 1000.0;   // reference density, kg/m^3
+    double c0 = 50.0;       // numerical speed of sound, m/s (>= 10 x the flow speed)
+    double gamma = 7.0;     // Tait exponent
+    double gravity = 9.81;  // m/s^2
+    double alpha = 0.1;     // Monaghan artificial viscosity
+    double delta = 0.01;    // particle spacing, m
+    double h = 0.0;         // smoothing length 0.94 delta sqrt(2)
+    int shepard_every = 30; // density re-initialisation period, steps
+    static constexpr double h_factor = 0.94;
+    static constexpr double cfl = 0.4; // Monaghan's acoustic limit: dt <= 0.4 h / c0
+
+    double tait_b() const { return c0 * c0 * rho0 / gamma; }
+    double pressure(double rho) const { return tait_b() * (std::pow(rho / rho0, gamma) - 1.0); }
+    double density(double pressure) const {
+        return rho0 * std::pow(1.0 + pressure / tait_b(), 1.0 / gamma);
+    }
+    double particle_mass() const { return rho0 * delta * delta; }
+    double max_dt() const { return cfl * h / c0; }
+    QuinticKernel kernel() const { return QuinticKernel(h); }
+    double cell_size() const { return QuinticKernel::support_factor * h; }
+};
+
+// The tank and the initial block of fluid, in metres, after scaling.
+struct Geometry {
+    double tank_length = 0; // B
+    double dam_width = 0;   // L
+    double dam_height = 0;  // T
+    double dam_x0 = 0, dam_y0 = 0;
+    double ceiling = 0; // 1.5 T: particles above it are stored in the top cell row
+    int fluid_columns = 0, fluid_rows = 0; // particles along x and y
+    int cell_columns = 0, cell_rows = 0;   // cells over the tank (no ghost columns/rows)
+    double cell_size = 0;
+
+    std::int64_t fluid_particles() const {
+        return static_cast<std::int64_t>(fluid_columns) * fluid_rows;
+    }
+};
+
+struct Config {
+    Setup setup = Setup::dambreak;
+    GridKind grid = GridKind::table;
+    BoundaryKind boundary = BoundaryKind::mirror;
+    double scale = 1.0;
+    double column_width = 0.3; // a, column setup only
+    double dt = 1e-4;
+    std::optional<std::int64_t> steps;
+    std::optional<double> end_time;
+    int threads = 0; // 0: OMP_NUM_THREADS / runtime default
+    int interval = 1000;
+    std::optional<std::filesystem::path> report;
+    std::optional<std::filesystem::path> vtk_dir;
+    int vtk_every = 0;
+    bool quiet = false;
+    Physics physics;
+
+    std::int64_t total_steps() const;
+};
+
+// Thesis geometry (3.1, 3.6.1): dam L = 1.2, T = 0.6 in a tank B = 3.22, times scale.
+Geometry make_geometry(const Config &cfg);
+
+// Checks values that parsing alone cannot (ranges, CFL); throws UsageError.
+void validate(const Config &cfg, const Geometry &geo, int ranks);
+
+} // namespace sphperf::sph
