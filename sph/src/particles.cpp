@@ -62,8 +62,6 @@ void Particles::add_owned(const ParticleRecord &r) {
 }
 
 void Particles::add_transient(const ParticleRecord &r) {
-    if (r.kind != Kind::mirror && r.kind != Kind::ghost)
-        throw std::logic_error("only mirror and ghost particles are transient");
     push(r);
 }
 

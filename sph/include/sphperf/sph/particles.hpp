@@ -1,7 +1,8 @@
 #pragma once
 // Particle storage in structure-of-arrays order. Owned particles (fluid, then wall particles of
-// the fixed boundary) come first; transient ones (mirrored virtual particles and ghosts from
-// neighbouring ranks) are appended each step and dropped at its end.
+// the fixed boundary) come first; transient ones (mirrored virtual particles and ghosts, i.e.
+// copies of a neighbouring rank's particles that keep their kind) are appended each step and
+// dropped at its end. Ids are dense and global, so a ghost has its owner's id.
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -13,7 +14,6 @@ enum class Kind : std::uint8_t {
     fluid = 0,    // field particle
     boundary = 1, // fixed wall particle (Dirichlet), owned, density evolves (dynamic boundary)
     mirror = 2,   // virtual particle mirrored from near-wall fluid each step (Neumann)
-    ghost = 3,    // copy of a neighbouring rank's particle
 };
 
 // One particle by value: what crosses ranks and what tests build configurations from.
@@ -36,7 +36,7 @@ public:
 
     // Adds an owned particle; fluid particles are kept in front of boundary particles.
     void add_owned(const ParticleRecord &r);
-    // Appends a transient particle (mirror or ghost) after all owned ones.
+    // Appends a transient particle (a mirror, or a ghost of any kind) after all owned ones.
     void add_transient(const ParticleRecord &r);
     void drop_transient();
     // Removes owned particle i (a migrating particle) keeping fluid-before-boundary order.

@@ -1,0 +1,85 @@
+#pragma once
+// Domain decomposition and communication: the only code that calls MPI. The tank is cut into
+// vertical slabs of whole cell columns in rank order (thesis 3.1); each step, particles that
+// left a slab migrate and the particles of each edge column are sent as ghosts. One rank
+// exchanges nothing.
+#include "sphperf/sph/grid.hpp"
+#include "sphperf/sph/particles.hpp"
+
+#include <mpi.h>
+
+#include <functional>
+#include <vector>
+
+namespace sphperf::sph {
+
+struct Slab {
+    int rank = 0, ranks = 1;
+    int columns = 1;        // cell columns over the whole tank
+    int begin = 0, end = 1; // the columns this rank owns
+    double cell_size = 1;
+
+    static int first_column(int rank, int ranks, int columns) {
+        return static_cast<int>(static_cast<long long>(rank) * columns / ranks);
+    }
+    int owner_of_column(int column) const;
+    int owner_of(double x) const; // positions outside the tank belong to the edge ranks
+    bool owns(double x) const { return owner_of(x) == rank; }
+    double x_begin() const { return begin * cell_size; }
+    double x_end() const { return end * cell_size; }
+};
+
+struct ExchangeCounts {
+    std::size_t sent = 0, received = 0;
+};
+
+class Domain {
+public:
+    Domain(MPI_Comm comm, int columns, double cell_size);
+
+    int rank() const { return slab_.rank; }
+    int ranks() const { return slab_.ranks; }
+    const Slab &slab() const { return slab_; }
+    // The cells this rank stores: its columns, one ghost column each side, rows from one
+    // below the floor up to the ceiling row.
+    CellWindow window(int cell_rows) const;
+
+    // Sends owned particles whose column now belongs to another rank; `forget` is told each id
+    // that leaves (the persistent grid drops it). Needs no transient particles present.
+    ExchangeCounts migrate(Particles &p, const std::function<void(std::int64_t)> &forget);
+    // Appends copies of the neighbours' edge-column particles (owned and mirrors).
+    ExchangeCounts exchange_ghosts(Particles &p);
+    // Sends the current density of the particles exported by the last exchange_ghosts, so the
+    // ghosts match their owners after the owners advanced their density.
+    void refresh_ghost_density(Particles &p);
+
+    // Collective helpers.
+    double sum(double v) const;
+    double max(double v) const;
+    long long sum(long long v) const;
+    void sum_to_root(std::vector<double> &v) const; // element-wise, result on rank 0
+    std::vector<double> gather(const std::vector<double> &v) const; // concatenated on rank 0
+    void barrier() const;
+
+    // Cumulative migration tallies, for naming the ranks when a particle goes missing.
+    long long sent_east() const { return sent_east_; }
+    long long sent_west() const { return sent_west_; }
+    long long received_east() const { return recv_east_; }
+    long long received_west() const { return recv_west_; }
+
+private:
+    template <class T> struct Received {
+        std::vector<T> from_west, from_east;
+    };
+    template <class T>
+    Received<T> shift(const std::vector<T> &to_west, const std::vector<T> &to_east,
+                      int tag) const;
+    std::vector<std::uint32_t> export_west_, export_east_; // indices sent by the last exchange
+    std::size_t ghosts_begin_ = 0, ghosts_from_west_ = 0;  // where received ghosts landed
+    MPI_Comm comm_;
+    Slab slab_;
+    int west_ = MPI_PROC_NULL, east_ = MPI_PROC_NULL;
+    long long sent_east_ = 0, sent_west_ = 0, recv_east_ = 0, recv_west_ = 0;
+};
+
+} // namespace sphperf::sph

@@ -1,0 +1,145 @@
+#pragma once
+// Cell grids of cell size 3h over one rank's slab (plus one ghost column each side and one
+// ghost row below the floor). Two interchangeable schemes satisfy the CellGrid concept:
+//   CellList  (thesis 3.3): linked lists rebuilt every step from the flat particle arrays;
+//   CellTable (thesis 3.4): persistent per-cell hash tables keyed by particle id, where only
+//                           particles that changed cell move between tables.
+// The neighbour search is written once, for any CellGrid, with no virtual call.
+#include "sphperf/sph/neighbours.hpp"
+#include "sphperf/sph/particles.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <concepts>
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+namespace sphperf::sph {
+
+// The cells one rank stores: global columns [col_begin, col_end), rows [row_begin, row_end).
+// Positions outside are filed in the nearest edge cell: correct, because pairs are always
+// checked by distance, and cheap, because only a few splashes or wall layers fall there.
+struct CellWindow {
+    double cell_size = 1;
+    int col_begin = 0, col_end = 1;
+    int row_begin = -1, row_end = 1;
+
+    int cols() const { return col_end - col_begin; }
+    int rows() const { return row_end - row_begin; }
+    int cells() const { return cols() * rows(); }
+    int column_of(double x) const {
+        return std::clamp(static_cast<int>(std::floor(x / cell_size)), col_begin, col_end - 1);
+    }
+    int row_of(double y) const {
+        return std::clamp(static_cast<int>(std::floor(y / cell_size)), row_begin, row_end - 1);
+    }
+    int cell(int col, int row) const { return (row - row_begin) * cols() + (col - col_begin); }
+    int cell_of(double x, double y) const { return cell(column_of(x), row_of(y)); }
+};
+
+template <class G>
+concept CellGrid = requires(G g, const G cg, const Particles &p, const CellWindow &w,
+                            std::int64_t id, void (*visit)(std::uint32_t)) {
+    { G::name } -> std::convertible_to<std::string_view>;
+    g.update(p, w);           // file every current particle in its cell
+    g.remove_transient(p, w); // before ghosts and mirrors are dropped
+    g.forget(id);             // an owned particle left this rank
+    cg.for_each_in_cell(0, p, visit);
+    { cg.last_moves() } -> std::convertible_to<std::size_t>;
+};
+
+// Cell+List: head[cell] and next[particle], rebuilt every step; lock-free parallel insertion.
+class CellList {
+public:
+    static constexpr std::string_view name = "list";
+
+    void update(const Particles &p, const CellWindow &w);
+    void remove_transient(const Particles &, const CellWindow &) {}
+    void forget(std::int64_t) {}
+    std::size_t last_moves() const { return moves_; }
+
+    template <class F> void for_each_in_cell(int cell, const Particles &, F &&f) const {
+        for (std::int32_t i = head_[static_cast<std::size_t>(cell)]; i >= 0;
+             i = next_[static_cast<std::size_t>(i)])
+            f(static_cast<std::uint32_t>(i));
+    }
+
+private:
+    std::vector<std::int32_t> head_, next_;
+    std::size_t moves_ = 0;
+};
+
+// An open-addressing hash set of particle ids (linear probing, backward-shift deletion, so no
+// tombstones accumulate in a table that lives for the whole run).
+class IdTable {
+public:
+    void insert(std::int64_t id);
+    bool erase(std::int64_t id);
+    std::size_t size() const { return size_; }
+    template <class F> void for_each(F &&f) const {
+        for (std::int64_t k : slots_)
+            if (k != empty)
+                f(k);
+    }
+
+private:
+    static constexpr std::int64_t empty = -1;
+    std::size_t slot_of(std::int64_t id) const {
+        // Fibonacci hashing spreads consecutive ids over the slots.
+        return static_cast<std::size_t>((static_cast<std::uint64_t>(id) * 0x9E3779B97F4A7C15ull) >>
+                                        shift_);
+    }
+    void grow();
+    std::vector<std::int64_t> slots_;
+    std::size_t size_ = 0;
+    int shift_ = 64;
+};
+
+// Cell+Table: persistent cells; a particle moves between tables only when it changes cell.
+// Particle ids are dense (setup assigns them), so id -> cell and id -> index are arrays.
+class CellTable {
+public:
+    static constexpr std::string_view name = "table";
+
+    void update(const Particles &p, const CellWindow &w);
+    void remove_transient(const Particles &p, const CellWindow &w);
+    void forget(std::int64_t id);
+    std::size_t last_moves() const { return moves_; }
+
+    template <class F> void for_each_in_cell(int cell, const Particles &, F &&f) const {
+        tables_[static_cast<std::size_t>(cell)].for_each([&](std::int64_t id) {
+            f(static_cast<std::uint32_t>(index_of_[static_cast<std::size_t>(id)]));
+        });
+    }
+
+private:
+    void ensure_ids(std::int64_t id);
+    std::vector<IdTable> tables_;
+    std::vector<std::int32_t> home_;     // id -> cell it is filed in, -1 if none
+    std::vector<std::int32_t> index_of_; // id -> index in the particle arrays this step
+    std::vector<std::int32_t> new_cell_; // scratch, per particle
+    std::size_t moves_ = 0;
+    int window_cells_ = -1;
+};
+
+struct PairCounts {
+    std::uint64_t pairs = 0;        // unordered pairs within 3h with at least one fluid particle
+    std::uint64_t interactions = 0; // ordered pairs (i, j) contributing to an owned particle i
+};
+
+// Two particles interact unless neither is fluid (walls and mirrors do not act on each other).
+inline bool interacting(Kind a, Kind b) {
+    return a == Kind::fluid || b == Kind::fluid;
+}
+
+// Neighbour lists of the owned particles: every particle within `radius` (strictly) in the 3x3
+// cells around, sorted by id. Works on any CellGrid.
+template <CellGrid G>
+PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &w, double radius,
+                           NeighbourList &nl);
+
+} // namespace sphperf::sph
+
+#include "sphperf/sph/grid_impl.hpp"

@@ -1,0 +1,54 @@
+#pragma once
+// Template part of grid.hpp: the neighbour search shared by all grid schemes.
+#include <omp.h>
+
+namespace sphperf::sph {
+
+template <CellGrid G>
+PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &w, double radius,
+                           NeighbourList &nl) {
+    const std::size_t owned = p.owned();
+    const double r2max = radius * radius;
+    nl.offsets.assign(owned + 1, 0);
+    const int threads = omp_get_max_threads();
+    // Each thread fills its own list for a contiguous block of particles, then the blocks are
+    // concatenated in order: deterministic and free of atomics.
+    std::vector<std::vector<std::uint32_t>> parts(static_cast<std::size_t>(threads));
+    std::uint64_t pairs = 0;
+#pragma omp parallel num_threads(threads) reduction(+ : pairs)
+    {
+        auto &mine = parts[static_cast<std::size_t>(omp_get_thread_num())];
+        std::vector<std::uint32_t> local;
+#pragma omp for schedule(static)
+        for (std::size_t i = 0; i < owned; ++i) {
+            local.clear();
+            const int ci = w.column_of(p.x[i]), ri = w.row_of(p.y[i]);
+            for (int c = std::max(ci - 1, w.col_begin); c <= std::min(ci + 1, w.col_end - 1); ++c)
+                for (int r = std::max(ri - 1, w.row_begin); r <= std::min(ri + 1, w.row_end - 1);
+                     ++r)
+                    grid.for_each_in_cell(w.cell(c, r), p, [&](std::uint32_t j) {
+                        if (j == i || !interacting(p.kind[i], p.kind[j]))
+                            return;
+                        const double dx = p.x[i] - p.x[j], dy = p.y[i] - p.y[j];
+                        if (dx * dx + dy * dy < r2max)
+                            local.push_back(j);
+                    });
+            std::sort(local.begin(), local.end(),
+                      [&](std::uint32_t a, std::uint32_t b) { return p.id[a] < p.id[b]; });
+            for (std::uint32_t j : local)
+                if (j >= owned || p.id[j] > p.id[i])
+                    ++pairs; // owned-owned pairs once, pairs with transient particles here
+            nl.offsets[i + 1] = static_cast<std::uint32_t>(local.size());
+            mine.insert(mine.end(), local.begin(), local.end());
+        }
+    }
+    for (std::size_t i = 0; i < owned; ++i)
+        nl.offsets[i + 1] += nl.offsets[i];
+    nl.index.clear();
+    nl.index.reserve(nl.offsets[owned]);
+    for (const auto &part : parts)
+        nl.index.insert(nl.index.end(), part.begin(), part.end());
+    return {pairs, nl.index.size()};
+}
+
+} // namespace sphperf::sph

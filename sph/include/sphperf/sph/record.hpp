@@ -1,0 +1,60 @@
+#pragma once
+// What a run measured, gathered on rank 0: the input of the JSON report.
+#include "sphperf/sph/config.hpp"
+#include "sphperf/sph/timers.hpp"
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace sphperf::sph {
+
+// One rank over one report interval. Counts are means per step unless noted.
+struct RankInterval {
+    double steps = 0;
+    double field = 0;        // fluid particles owned at the end of the interval
+    double virtual_ = 0;     // mirror particles made (mirror) or wall particles owned (fixed)
+    double ghost = 0;        // ghost particles received
+    double pairs = 0;        // unordered interacting pairs found
+    double interactions = 0; // ordered pairs (i, j) contributing to an owned particle i
+    double exported = 0;     // particles sent as ghosts
+    double migrated = 0;     // particles that left this rank, total over the interval
+    double cell_moves = 0;   // particles (re)filed in a cell
+    double idle_s = 0;       // time with no fluid particle to work on
+    std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
+
+    static constexpr std::size_t fields = 10 + static_cast<std::size_t>(Phase::count);
+    std::array<double, fields> pack() const;
+    static RankInterval unpack(const double *v);
+};
+
+struct IntervalRecord {
+    std::int64_t step = 0;
+    double time_s = 0;
+    std::vector<double> columns; // fluid particles per global cell column
+    std::vector<RankInterval> ranks;
+};
+
+struct PhysicsSeries {
+    std::vector<double> time_s, front_x, mass, kinetic_energy;
+};
+
+struct RunRecord {
+    Config config;
+    Geometry geometry;
+    int ranks = 1;
+    int threads = 1;
+    std::int64_t steps = 0;
+    std::int64_t fluid_particles = 0;
+    std::int64_t wall_particles = 0;
+    double mean_virtual = 0; // mirrors per step (mirror) or wall particles (fixed), all ranks
+    double wall_s = 0;
+    double interactions_total = 0; // over all steps and ranks
+    std::vector<IntervalRecord> intervals;
+    PhysicsSeries physics;
+    std::vector<double> peak_rss_bytes;                                             // per rank
+    std::vector<std::array<double, static_cast<std::size_t>(Phase::count)>> timers; // per rank
+    std::vector<double> idle_s;                                                     // per rank
+};
+
+} // namespace sphperf::sph

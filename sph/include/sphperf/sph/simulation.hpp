@@ -1,0 +1,298 @@
+#pragma once
+// One SPH run on one rank's slab, for any cell-grid scheme. step() reads as the method:
+// kick-drift, migrate, boundary, ghosts, grid, neighbours, forces, kick.
+#include "sphperf/sph/config.hpp"
+#include "sphperf/sph/domain.hpp"
+#include "sphperf/sph/grid.hpp"
+#include "sphperf/sph/integrator.hpp"
+#include "sphperf/sph/output.hpp"
+#include "sphperf/sph/physics.hpp"
+#include "sphperf/sph/record.hpp"
+#include "sphperf/sph/setup.hpp"
+#include "sphperf/sph/timers.hpp"
+
+#include <omp.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace sphperf::sph {
+
+template <CellGrid Grid> class Simulation {
+public:
+    Simulation(const Config &cfg, const Geometry &geo, Domain &dom)
+        : cfg_(cfg), geo_(geo), phys_(cfg.physics), dom_(dom), window_(dom.window(geo.cell_rows)) {}
+
+    RunRecord run();
+
+private:
+    void load_initial();
+    void build_transients();
+    void compute_forces();
+    void step();
+    void close_interval(std::int64_t step);
+    void check_conservation(std::int64_t step) const;
+    void sample_physics(double time);
+    void write_snapshot(std::int64_t step);
+
+    Config cfg_;
+    Geometry geo_;
+    Physics phys_;
+    Domain &dom_;
+    CellWindow window_;
+    Grid grid_;
+    Particles p_;
+    NeighbourList nl_;
+    PhaseTimers step_timers_, total_timers_;
+    RankInterval acc_;
+    PairCounts last_counts_;
+    std::size_t last_mirrors_ = 0, last_ghosts_ = 0, last_exported_ = 0, last_migrated_ = 0;
+    std::int64_t first_mirror_id_ = 0;
+    std::vector<std::uint32_t> mirror_sources_;
+    bool advance_density_ = false; // false only for the initial force evaluation
+    long long initial_fluid_ = 0, initial_local_fluid_ = 0;
+    double total_idle_ = 0, interactions_total_ = 0;
+    std::int64_t snapshot_ = 0;
+    Snapshots snapshots_;
+    RunRecord record_;
+};
+
+template <CellGrid Grid> void Simulation<Grid>::load_initial() {
+    std::vector<ParticleRecord> fluid = make_fluid(geo_, phys_);
+    std::vector<ParticleRecord> walls;
+    if (cfg_.boundary == BoundaryKind::fixed)
+        walls = make_walls(geo_, phys_, static_cast<std::int64_t>(fluid.size()));
+    first_mirror_id_ = static_cast<std::int64_t>(fluid.size() + walls.size());
+    p_.reserve(2 * (fluid.size() + walls.size()) / static_cast<std::size_t>(dom_.ranks()));
+    for (const auto *set : {&fluid, &walls})
+        for (const auto &r : *set)
+            if (dom_.slab().owns(r.x))
+                p_.add_owned(r);
+    initial_local_fluid_ = static_cast<long long>(p_.fluid());
+    initial_fluid_ = dom_.sum(initial_local_fluid_);
+    record_.fluid_particles = static_cast<std::int64_t>(fluid.size());
+    record_.wall_particles = static_cast<std::int64_t>(walls.size());
+}
+
+// Mirror particles (mirror boundary) and ghosts from the neighbouring slabs.
+template <CellGrid Grid> void Simulation<Grid>::build_transients() {
+    {
+        ScopedPhase t(step_timers_, Phase::boundary);
+        last_mirrors_ = cfg_.boundary == BoundaryKind::mirror
+                            ? add_mirrors(p_, geo_, phys_, first_mirror_id_, mirror_sources_)
+                            : 0;
+    }
+    ScopedPhase t(step_timers_, Phase::comm);
+    const ExchangeCounts g = dom_.exchange_ghosts(p_);
+    last_ghosts_ = g.received;
+    last_exported_ = g.sent;
+}
+
+template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
+    {
+        ScopedPhase t(step_timers_, Phase::grid);
+        grid_.update(p_, window_);
+    }
+    {
+        ScopedPhase t(step_timers_, Phase::pairs);
+        last_counts_ = find_neighbours(grid_, p_, window_, phys_.cell_size(), nl_);
+    }
+    {
+        ScopedPhase t(step_timers_, Phase::comp);
+        continuity(p_, nl_, phys_);
+        if (!advance_density_)
+            return equation_of_state(p_, phys_), momentum(p_, nl_, phys_);
+        advance_density(p_, cfg_.dt);
+        refresh_mirrors(p_, p_.owned(), mirror_sources_, phys_);
+    }
+    {
+        ScopedPhase t(step_timers_, Phase::comm);
+        dom_.refresh_ghost_density(p_);
+    }
+    ScopedPhase t(step_timers_, Phase::comp);
+    equation_of_state(p_, phys_);
+    momentum(p_, nl_, phys_);
+}
+
+template <CellGrid Grid> void Simulation<Grid>::step() {
+    {
+        ScopedPhase t(step_timers_, Phase::integrate);
+        half_kick(p_, cfg_.dt);
+        drift(p_, cfg_.dt);
+    }
+    {
+        ScopedPhase t(step_timers_, Phase::grid);
+        grid_.remove_transient(p_, window_);
+        p_.drop_transient();
+    }
+    {
+        ScopedPhase t(step_timers_, Phase::comm);
+        last_migrated_ = dom_.migrate(p_, [this](std::int64_t id) { grid_.forget(id); }).sent;
+    }
+    build_transients();
+    compute_forces();
+    ScopedPhase t(step_timers_, Phase::integrate);
+    half_kick(p_, cfg_.dt);
+}
+
+template <CellGrid Grid> void Simulation<Grid>::sample_physics(double time) {
+    double front = 0, mass = 0, ke = 0;
+    for (std::size_t i = 0; i < p_.fluid(); ++i) {
+        if (p_.y[i] < 5 * phys_.delta)
+            front = std::max(front, p_.x[i]);
+        mass += p_.mass[i];
+        ke += 0.5 * p_.mass[i] * (p_.vx[i] * p_.vx[i] + p_.vy[i] * p_.vy[i]);
+    }
+    auto &s = record_.physics;
+    s.time_s.push_back(time);
+    s.front_x.push_back(dom_.max(front));
+    s.mass.push_back(dom_.sum(mass));
+    s.kinetic_energy.push_back(dom_.sum(ke));
+}
+
+template <CellGrid Grid> void Simulation<Grid>::check_conservation(std::int64_t step) const {
+    const long long fluid = dom_.sum(static_cast<long long>(p_.fluid()));
+    if (fluid == initial_fluid_)
+        return;
+    // Name the ranks whose holdings do not match what their migrations say they should hold.
+    const std::vector<double> mine{
+        static_cast<double>(p_.fluid()), static_cast<double>(initial_local_fluid_),
+        static_cast<double>(dom_.sent_east() + dom_.sent_west()),
+        static_cast<double>(dom_.received_east() + dom_.received_west())};
+    const std::vector<double> all = dom_.gather(mine);
+    std::string culprits;
+    for (std::size_t r = 0; r * 4 < all.size(); ++r) {
+        const double expected = all[4 * r + 1] + all[4 * r + 3] - all[4 * r + 2];
+        if (all[4 * r] != expected)
+            culprits += (culprits.empty() ? "" : ", ") + std::to_string(r);
+    }
+    throw std::runtime_error(
+        "step " + std::to_string(step) + ": fluid particle count changed from " +
+        std::to_string(initial_fluid_) + " to " + std::to_string(fluid) +
+        (culprits.empty() ? std::string(" (no rank's migrations explain it)")
+                          : " on rank(s) " + culprits + " (holdings differ from migrations)"));
+}
+
+template <CellGrid Grid> void Simulation<Grid>::close_interval(std::int64_t step) {
+    acc_.field = static_cast<double>(p_.fluid());
+    const double n = std::max(acc_.steps, 1.0);
+    RankInterval out = acc_;
+    for (double *v :
+         {&out.virtual_, &out.ghost, &out.pairs, &out.interactions, &out.exported, &out.cell_moves})
+        *v /= n;
+    const auto packed = out.pack();
+    const auto all = dom_.gather(std::vector<double>(packed.begin(), packed.end()));
+    std::vector<double> columns(static_cast<std::size_t>(geo_.cell_columns), 0.0);
+    for (std::size_t i = 0; i < p_.fluid(); ++i)
+        columns[static_cast<std::size_t>(std::clamp(
+            static_cast<int>(std::floor(p_.x[i] / geo_.cell_size)), 0, geo_.cell_columns - 1))] +=
+            1;
+    dom_.sum_to_root(columns);
+    if (dom_.rank() == 0) {
+        IntervalRecord rec{step, static_cast<double>(step) * cfg_.dt, std::move(columns), {}};
+        for (std::size_t r = 0; r < static_cast<std::size_t>(dom_.ranks()); ++r)
+            rec.ranks.push_back(RankInterval::unpack(&all[r * RankInterval::fields]));
+        record_.intervals.push_back(std::move(rec));
+    }
+    acc_ = RankInterval{};
+    check_conservation(step);
+}
+
+template <CellGrid Grid> void Simulation<Grid>::write_snapshot(std::int64_t step) {
+    ScopedPhase t(step_timers_, Phase::output);
+    snapshots_.write(*cfg_.vtk_dir, snapshot_++, static_cast<double>(step) * cfg_.dt, p_,
+                     dom_.rank(), dom_.ranks());
+}
+
+template <CellGrid Grid> RunRecord Simulation<Grid>::run() {
+    record_.config = cfg_;
+    record_.geometry = geo_;
+    record_.ranks = dom_.ranks();
+    record_.threads = omp_get_max_threads();
+    const std::int64_t steps = cfg_.total_steps();
+    record_.steps = steps;
+    const int physics_every = std::max(1, std::min(cfg_.interval, 100));
+
+    load_initial();
+    build_transients();
+    compute_forces(); // accelerations of the initial state; density stays as set up
+    advance_density_ = true;
+    sample_physics(0.0);
+    if (cfg_.vtk_dir)
+        write_snapshot(0);
+    step_timers_.reset();
+
+    Progress progress(dom_.rank() == 0 && !cfg_.quiet, steps, cfg_.dt);
+    dom_.barrier();
+    const double start = wall_seconds();
+    for (std::int64_t s = 1; s <= steps; ++s) {
+        const double t0 = wall_seconds();
+        step();
+        if (cfg_.physics.shepard_every > 0 && s % cfg_.physics.shepard_every == 0) {
+            ScopedPhase t(step_timers_, Phase::comp);
+            shepard_filter(p_, nl_, phys_);
+        }
+        const double dt_wall = wall_seconds() - t0;
+        if (p_.fluid() == 0) {
+            acc_.idle_s += dt_wall;
+            total_idle_ += dt_wall;
+        }
+        acc_.steps += 1;
+        acc_.virtual_ += static_cast<double>(
+            cfg_.boundary == BoundaryKind::mirror ? last_mirrors_ : p_.owned() - p_.fluid());
+        acc_.ghost += static_cast<double>(last_ghosts_);
+        acc_.pairs += static_cast<double>(last_counts_.pairs);
+        acc_.interactions += static_cast<double>(last_counts_.interactions);
+        interactions_total_ += static_cast<double>(last_counts_.interactions);
+        acc_.exported += static_cast<double>(last_exported_);
+        acc_.migrated += static_cast<double>(last_migrated_);
+        acc_.cell_moves += static_cast<double>(grid_.last_moves());
+        for (std::size_t k = 0; k < acc_.timers.size(); ++k)
+            acc_.timers[k] += step_timers_.values()[k];
+        for (std::size_t k = 0; k < acc_.timers.size(); ++k)
+            total_timers_.add(static_cast<Phase>(k), step_timers_.values()[k]);
+        step_timers_.reset();
+
+        if (s % physics_every == 0 || s == steps)
+            sample_physics(static_cast<double>(s) * cfg_.dt);
+        if (s % cfg_.interval == 0 || s == steps)
+            close_interval(s);
+        if (cfg_.vtk_dir && s % cfg_.vtk_every == 0)
+            write_snapshot(s);
+        progress.update(s);
+    }
+    dom_.barrier();
+    record_.wall_s = wall_seconds() - start;
+    progress.finish();
+    if (steps == 0)
+        check_conservation(0);
+
+    record_.interactions_total = dom_.sum(interactions_total_);
+    double virt = 0;
+    for (const auto &iv : record_.intervals)
+        for (const auto &r : iv.ranks)
+            virt += r.virtual_ * r.steps;
+    record_.mean_virtual = steps > 0 ? virt / static_cast<double>(steps) : 0;
+
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    constexpr double kib = 1024.0;
+    record_.peak_rss_bytes = dom_.gather({static_cast<double>(usage.ru_maxrss) * kib});
+    const auto &tv = total_timers_.values();
+    const auto timers = dom_.gather(std::vector<double>(tv.begin(), tv.end()));
+    for (std::size_t r = 0; r * tv.size() < timers.size(); ++r) {
+        std::array<double, static_cast<std::size_t>(Phase::count)> a{};
+        std::copy_n(&timers[r * tv.size()], tv.size(), a.begin());
+        record_.timers.push_back(a);
+    }
+    record_.idle_s = dom_.gather({total_idle_});
+    if (cfg_.vtk_dir && dom_.rank() == 0)
+        snapshots_.write_index(*cfg_.vtk_dir);
+    return record_;
+}
+
+} // namespace sphperf::sph

@@ -1,0 +1,40 @@
+#pragma once
+// Named phase timers with RAII scopes.
+#include "sphperf/timer.hpp"
+
+#include <array>
+#include <cstddef>
+#include <string_view>
+
+namespace sphperf::sph {
+
+enum class Phase : std::size_t { pairs, grid, comp, comm, boundary, integrate, output, count };
+
+inline constexpr std::array<std::string_view, static_cast<std::size_t>(Phase::count)> phase_keys{
+    "pairs_s", "grid_s", "comp_s", "comm_s", "boundary_s", "integrate_s", "output_s"};
+
+class PhaseTimers {
+public:
+    void add(Phase p, double seconds) { acc_[static_cast<std::size_t>(p)] += seconds; }
+    double operator[](Phase p) const { return acc_[static_cast<std::size_t>(p)]; }
+    const auto &values() const { return acc_; }
+    void reset() { acc_.fill(0.0); }
+
+private:
+    std::array<double, static_cast<std::size_t>(Phase::count)> acc_{};
+};
+
+class ScopedPhase {
+public:
+    ScopedPhase(PhaseTimers &t, Phase p) : timers_(t), phase_(p), start_(wall_seconds()) {}
+    ~ScopedPhase() { timers_.add(phase_, wall_seconds() - start_); }
+    ScopedPhase(const ScopedPhase &) = delete;
+    ScopedPhase &operator=(const ScopedPhase &) = delete;
+
+private:
+    PhaseTimers &timers_;
+    Phase phase_;
+    double start_;
+};
+
+} // namespace sphperf::sph

@@ -1,0 +1,177 @@
+#include "sphperf/sph/domain.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+
+namespace sphperf::sph {
+
+namespace {
+constexpr int tag_migrate = 11;
+constexpr int tag_ghost = 12;
+constexpr int tag_density = 13;
+static_assert(std::is_trivially_copyable_v<ParticleRecord>);
+} // namespace
+
+int Slab::owner_of_column(int column) const {
+    const int c = std::clamp(column, 0, columns - 1);
+    // Inverse of first_column: the last rank whose first column is <= c.
+    int r = static_cast<int>((static_cast<long long>(c) * ranks + ranks - 1) / columns);
+    r = std::clamp(r, 0, ranks - 1);
+    while (r > 0 && first_column(r, ranks, columns) > c)
+        --r;
+    while (r + 1 < ranks && first_column(r + 1, ranks, columns) <= c)
+        ++r;
+    return r;
+}
+
+int Slab::owner_of(double x) const {
+    return owner_of_column(static_cast<int>(std::floor(x / cell_size)));
+}
+
+Domain::Domain(MPI_Comm comm, int columns, double cell_size) : comm_(comm) {
+    MPI_Comm_rank(comm, &slab_.rank);
+    MPI_Comm_size(comm, &slab_.ranks);
+    slab_.columns = columns;
+    slab_.cell_size = cell_size;
+    slab_.begin = Slab::first_column(slab_.rank, slab_.ranks, columns);
+    slab_.end = Slab::first_column(slab_.rank + 1, slab_.ranks, columns);
+    if (slab_.rank > 0)
+        west_ = slab_.rank - 1;
+    if (slab_.rank + 1 < slab_.ranks)
+        east_ = slab_.rank + 1;
+}
+
+CellWindow Domain::window(int cell_rows) const {
+    return {slab_.cell_size, slab_.begin - 1, slab_.end + 1, -1, cell_rows};
+}
+
+template <class T>
+Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vector<T> &to_east,
+                                  int tag) const {
+    static_assert(std::is_trivially_copyable_v<T>);
+    // Two shifts (eastward, then westward), counts first, values as bytes. Every rank sends
+    // and receives at once, so no chain forms across ranks; MPI_PROC_NULL makes the tank
+    // edges no-ops.
+    Received<T> in;
+    auto one_way = [&](int dest, int src, const std::vector<T> &out, std::vector<T> &into) {
+        int n_out = static_cast<int>(out.size()), n_in = 0;
+        MPI_Sendrecv(&n_out, 1, MPI_INT, dest, tag, &n_in, 1, MPI_INT, src, tag, comm_,
+                     MPI_STATUS_IGNORE);
+        into.resize(static_cast<std::size_t>(src == MPI_PROC_NULL ? 0 : n_in));
+        MPI_Sendrecv(out.data(), n_out * static_cast<int>(sizeof(T)), MPI_BYTE, dest, tag,
+                     into.data(), static_cast<int>(into.size() * sizeof(T)), MPI_BYTE, src, tag,
+                     comm_, MPI_STATUS_IGNORE);
+    };
+    one_way(east_, west_, to_east, in.from_west);
+    one_way(west_, east_, to_west, in.from_east);
+    return in;
+}
+
+ExchangeCounts Domain::migrate(Particles &p, const std::function<void(std::int64_t)> &forget) {
+    if (slab_.ranks == 1)
+        return {};
+    std::vector<ParticleRecord> to_west, to_east;
+    for (std::size_t i = p.owned(); i-- > 0;) {
+        const int owner = slab_.owner_of(p.x[i]);
+        if (owner == slab_.rank)
+            continue;
+        if (owner != slab_.rank - 1 && owner != slab_.rank + 1)
+            throw std::runtime_error("particle " + std::to_string(p.id[i]) + " jumped from rank " +
+                                     std::to_string(slab_.rank) + " to rank " +
+                                     std::to_string(owner) + " in one step; dt is too large");
+        (owner < slab_.rank ? to_west : to_east).push_back(p.record(i));
+        forget(p.id[i]);
+        p.remove_owned(i);
+    }
+    ExchangeCounts c{to_west.size() + to_east.size(), 0};
+    sent_west_ += static_cast<long long>(to_west.size());
+    sent_east_ += static_cast<long long>(to_east.size());
+    const auto in = shift(to_west, to_east, tag_migrate);
+    recv_west_ += static_cast<long long>(in.from_west.size());
+    recv_east_ += static_cast<long long>(in.from_east.size());
+    for (const auto *part : {&in.from_west, &in.from_east})
+        for (const auto &r : *part)
+            p.add_owned(r);
+    c.received = in.from_west.size() + in.from_east.size();
+    return c;
+}
+
+ExchangeCounts Domain::exchange_ghosts(Particles &p) {
+    if (slab_.ranks == 1)
+        return {};
+    std::vector<ParticleRecord> to_west, to_east;
+    export_west_.clear();
+    export_east_.clear();
+    const double west_edge = slab_.x_begin() + slab_.cell_size;
+    const double east_edge = slab_.x_end() - slab_.cell_size;
+    const std::size_t n = p.size();
+    for (std::size_t i = 0; i < n; ++i) {
+        if (west_ != MPI_PROC_NULL && p.x[i] < west_edge) {
+            to_west.push_back(p.record(i));
+            export_west_.push_back(static_cast<std::uint32_t>(i));
+        }
+        if (east_ != MPI_PROC_NULL && p.x[i] >= east_edge) {
+            to_east.push_back(p.record(i));
+            export_east_.push_back(static_cast<std::uint32_t>(i));
+        }
+    }
+    const auto in = shift(to_west, to_east, tag_ghost);
+    ghosts_begin_ = p.size();
+    ghosts_from_west_ = in.from_west.size();
+    for (const auto *part : {&in.from_west, &in.from_east})
+        for (const auto &r : *part)
+            p.add_transient(r);
+    return {to_west.size() + to_east.size(), in.from_west.size() + in.from_east.size()};
+}
+
+void Domain::refresh_ghost_density(Particles &p) {
+    if (slab_.ranks == 1)
+        return;
+    std::vector<double> to_west, to_east;
+    for (auto i : export_west_)
+        to_west.push_back(p.rho[i]);
+    for (auto i : export_east_)
+        to_east.push_back(p.rho[i]);
+    const auto in = shift(to_west, to_east, tag_density);
+    std::copy(in.from_west.begin(), in.from_west.end(),
+              p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_));
+    std::copy(in.from_east.begin(), in.from_east.end(),
+              p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_ + ghosts_from_west_));
+}
+
+double Domain::sum(double v) const {
+    double out = 0;
+    MPI_Allreduce(&v, &out, 1, MPI_DOUBLE, MPI_SUM, comm_);
+    return out;
+}
+double Domain::max(double v) const {
+    double out = 0;
+    MPI_Allreduce(&v, &out, 1, MPI_DOUBLE, MPI_MAX, comm_);
+    return out;
+}
+long long Domain::sum(long long v) const {
+    long long out = 0;
+    MPI_Allreduce(&v, &out, 1, MPI_LONG_LONG, MPI_SUM, comm_);
+    return out;
+}
+void Domain::sum_to_root(std::vector<double> &v) const {
+    if (slab_.rank == 0)
+        MPI_Reduce(MPI_IN_PLACE, v.data(), static_cast<int>(v.size()), MPI_DOUBLE, MPI_SUM, 0,
+                   comm_);
+    else
+        MPI_Reduce(v.data(), nullptr, static_cast<int>(v.size()), MPI_DOUBLE, MPI_SUM, 0, comm_);
+}
+std::vector<double> Domain::gather(const std::vector<double> &v) const {
+    std::vector<double> out(slab_.rank == 0 ? v.size() * static_cast<std::size_t>(slab_.ranks) : 0);
+    MPI_Gather(v.data(), static_cast<int>(v.size()), MPI_DOUBLE, out.data(),
+               static_cast<int>(v.size()), MPI_DOUBLE, 0, comm_);
+    return out;
+}
+void Domain::barrier() const {
+    MPI_Barrier(comm_);
+}
+
+} // namespace sphperf::sph

@@ -1,0 +1,195 @@
+#include "sphperf/sph/output.hpp"
+
+#include "sphperf/report.hpp"
+#include "sphperf/stats.hpp"
+#include "sphperf/timer.hpp"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <numeric>
+
+namespace sphperf::sph {
+
+std::array<double, RankInterval::fields> RankInterval::pack() const {
+    std::array<double, fields> v{steps,        field,    virtual_, ghost,      pairs,
+                                 interactions, exported, migrated, cell_moves, idle_s};
+    std::copy(timers.begin(), timers.end(), v.begin() + 10);
+    return v;
+}
+
+RankInterval RankInterval::unpack(const double *v) {
+    RankInterval r;
+    r.steps = v[0];
+    r.field = v[1];
+    r.virtual_ = v[2];
+    r.ghost = v[3];
+    r.pairs = v[4];
+    r.interactions = v[5];
+    r.exported = v[6];
+    r.migrated = v[7];
+    r.cell_moves = v[8];
+    r.idle_s = v[9];
+    std::copy_n(v + 10, r.timers.size(), r.timers.begin());
+    return r;
+}
+
+Progress::Progress(bool enabled, std::int64_t steps, double dt)
+    : enabled_(enabled && isatty(STDERR_FILENO)), steps_(steps), dt_(dt), start_(wall_seconds()) {}
+
+void Progress::update(std::int64_t step) {
+    if (!enabled_)
+        return;
+    const double now = wall_seconds();
+    constexpr double redraw_s = 0.5;
+    if (now - last_ < redraw_s && step != steps_)
+        return;
+    last_ = now;
+    const double rate = static_cast<double>(step) / std::max(now - start_, 1e-9);
+    const double eta = static_cast<double>(steps_ - step) / std::max(rate, 1e-9);
+    std::fprintf(stderr, "\rsph: step %lld/%lld  t=%.4f s  %.0f steps/s  ETA %.0f s   ",
+                 static_cast<long long>(step), static_cast<long long>(steps_),
+                 static_cast<double>(step) * dt_, rate, eta);
+    drawn_ = true;
+}
+
+void Progress::finish() {
+    if (drawn_)
+        std::fprintf(stderr, "\n");
+}
+
+void Snapshots::write(const std::filesystem::path &dir, std::int64_t index, double time,
+                      const Particles &p, int rank, int ranks) {
+    char name[64];
+    std::snprintf(name, sizeof name, "sph_%06lld_r%03d.vtu", static_cast<long long>(index), rank);
+    std::ofstream out(dir / name);
+    const std::size_t n = p.owned();
+    out << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\">\n"
+        << "<UnstructuredGrid><Piece NumberOfPoints=\"" << n << "\" NumberOfCells=\"" << n
+        << "\">\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+    for (std::size_t i = 0; i < n; ++i)
+        out << p.x[i] << ' ' << p.y[i] << " 0\n";
+    out << "</DataArray></Points>\n<Cells>\n"
+        << "<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n";
+    for (std::size_t i = 0; i < n; ++i)
+        out << i << '\n';
+    out << "</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n";
+    for (std::size_t i = 0; i < n; ++i)
+        out << i + 1 << '\n';
+    out << "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
+    for (std::size_t i = 0; i < n; ++i)
+        out << "1\n"; // VTK_VERTEX
+    out << "</DataArray>\n</Cells>\n<PointData Scalars=\"pressure\" Vectors=\"velocity\">\n"
+        << "<DataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\" "
+           "format=\"ascii\">\n";
+    for (std::size_t i = 0; i < n; ++i)
+        out << p.vx[i] << ' ' << p.vy[i] << " 0\n";
+    out << "</DataArray>\n";
+    auto scalar = [&](const char *field, auto &&value) {
+        out << "<DataArray type=\"Float64\" Name=\"" << field << "\" format=\"ascii\">\n";
+        for (std::size_t i = 0; i < n; ++i)
+            out << value(i) << '\n';
+        out << "</DataArray>\n";
+    };
+    scalar("density", [&](std::size_t i) { return p.rho[i]; });
+    scalar("pressure", [&](std::size_t i) { return p.p[i]; });
+    scalar("rank", [&](std::size_t) { return rank; });
+    scalar("kind", [&](std::size_t i) { return static_cast<int>(p.kind[i]); });
+    out << "</PointData>\n</Piece></UnstructuredGrid>\n</VTKFile>\n";
+    if (!out)
+        throw std::runtime_error("failed writing snapshot " + (dir / name).string());
+    // Rank 0 indexes every rank's part: the names are predictable.
+    if (rank == 0)
+        for (int r = 0; r < ranks; ++r) {
+            std::snprintf(name, sizeof name, "sph_%06lld_r%03d.vtu", static_cast<long long>(index),
+                          r);
+            entries_.push_back({time, r, name});
+        }
+}
+
+void Snapshots::write_index(const std::filesystem::path &dir) const {
+    std::ofstream out(dir / "sph.pvd");
+    out << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n"
+        << "<Collection>\n";
+    for (const auto &e : entries_)
+        out << "  <DataSet timestep=\"" << e.time << "\" part=\"" << e.part << "\" file=\""
+            << e.file << "\"/>\n";
+    out << "</Collection>\n</VTKFile>\n";
+}
+
+namespace {
+nlohmann::json min_avg_max(const std::vector<double> &v) {
+    const Summary s = summarize(v);
+    return {{"min", s.min}, {"avg", s.avg}, {"max", s.max}};
+}
+} // namespace
+
+nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
+    const Config &c = run.config;
+    nlohmann::json j = report_header("sph", topo);
+    j["config"] = {{"setup", to_string(c.setup)},
+                   {"grid", to_string(c.grid)},
+                   {"boundary", to_string(c.boundary)},
+                   {"scale", c.scale},
+                   {"delta", c.physics.delta},
+                   {"dt", c.dt},
+                   {"steps", run.steps},
+                   {"ranks", run.ranks},
+                   {"threads", run.threads},
+                   {"interval", c.interval},
+                   {"h", c.physics.h},
+                   {"cell_size", run.geometry.cell_size},
+                   {"cell_columns", run.geometry.cell_columns},
+                   {"cell_rows", run.geometry.cell_rows},
+                   {"tank_length", run.geometry.tank_length},
+                   {"dam_width", run.geometry.dam_width},
+                   {"dam_height", run.geometry.dam_height},
+                   {"rho0", c.physics.rho0},
+                   {"c0", c.physics.c0},
+                   {"gamma", c.physics.gamma},
+                   {"alpha", c.physics.alpha},
+                   {"shepard_every", c.physics.shepard_every}};
+    j["particles"] = {{"field", run.fluid_particles},
+                      {"virtual", run.mean_virtual},
+                      {"wall", run.wall_particles}};
+    j["wall_s"] = run.wall_s;
+    const double steps = static_cast<double>(run.steps);
+    j["particle_steps_per_s"] =
+        run.wall_s > 0 ? static_cast<double>(run.fluid_particles) * steps / run.wall_s : 0.0;
+    j["neighbour_interactions_per_s"] = run.wall_s > 0 ? run.interactions_total / run.wall_s : 0.0;
+    j["steps_per_s"] = run.wall_s > 0 ? steps / run.wall_s : 0.0;
+    j["peak_rss_bytes"] = run.peak_rss_bytes;
+
+    nlohmann::json totals;
+    for (std::size_t k = 0; k < phase_keys.size(); ++k) {
+        std::vector<double> v;
+        for (const auto &t : run.timers)
+            v.push_back(t[k]);
+        totals["timers"][phase_keys[k]] = min_avg_max(v);
+    }
+    totals["idle_s"] = min_avg_max(run.idle_s);
+    j["totals"] = totals;
+
+    for (const auto &iv : run.intervals) {
+        nlohmann::json jiv{{"step", iv.step}, {"time_s", iv.time_s}, {"columns", iv.columns}};
+        for (const auto &r : iv.ranks) {
+            nlohmann::json jr{{"steps", r.steps},           {"field", r.field},
+                              {"virtual", r.virtual_},      {"ghost", r.ghost},
+                              {"pairs", r.pairs},           {"interactions", r.interactions},
+                              {"exported", r.exported},     {"migrated", r.migrated},
+                              {"cell_moves", r.cell_moves}, {"idle_s", r.idle_s}};
+            for (std::size_t k = 0; k < phase_keys.size(); ++k)
+                jr["timers"][phase_keys[k]] = r.timers[k];
+            jiv["ranks"].push_back(jr);
+        }
+        j["intervals"].push_back(jiv);
+    }
+    j["physics"] = {{"time_s", run.physics.time_s},
+                    {"front_x", run.physics.front_x},
+                    {"mass", run.physics.mass},
+                    {"kinetic_energy", run.physics.kinetic_energy}};
+    return j;
+}
+
+} // namespace sphperf::sph

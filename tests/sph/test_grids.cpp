@@ -1,0 +1,155 @@
+// Both grid schemes against an O(N^2) search, on random and lattice configurations with ghost
+// columns, and the persistent table through moves, departures and transient particles.
+#include "sphperf/sph/grid.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <set>
+
+using namespace sphperf::sph;
+
+namespace {
+constexpr double cell = 0.04;
+using PairSet = std::set<std::pair<std::int64_t, std::int64_t>>;
+
+// Ordered pairs (id_i, id_j) for owned i, as the neighbour list has them.
+PairSet brute_force(const Particles& p) {
+    PairSet s;
+    for (std::size_t i = 0; i < p.owned(); ++i)
+        for (std::size_t j = 0; j < p.size(); ++j) {
+            if (i == j || !interacting(p.kind[i], p.kind[j]))
+                continue;
+            const double dx = p.x[i] - p.x[j], dy = p.y[i] - p.y[j];
+            if (dx * dx + dy * dy < cell * cell)
+                s.insert({p.id[i], p.id[j]});
+        }
+    return s;
+}
+
+PairSet from_list(const Particles& p, const NeighbourList& nl) {
+    PairSet s;
+    for (std::size_t i = 0; i < nl.particles(); ++i) {
+        std::int64_t previous = -1;
+        for (auto e = nl.offsets[i]; e < nl.offsets[i + 1]; ++e) {
+            const auto j = nl.index[e];
+            EXPECT_GT(p.id[j], previous) << "neighbours must be sorted by id";
+            previous = p.id[j];
+            s.insert({p.id[i], p.id[j]});
+        }
+    }
+    return s;
+}
+
+// A slab owning columns 3..8 of a tank, ghosts in columns 2 and 9, rows -1..5.
+const CellWindow window{cell, 2, 10, -1, 6};
+
+Particles random_configuration(unsigned seed, int n_owned, int n_ghost) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> x_owned(3 * cell, 9 * cell), y(-cell, 6 * cell);
+    std::uniform_real_distribution<double> x_west(2 * cell, 3 * cell), x_east(9 * cell, 10 * cell);
+    Particles p;
+    std::int64_t id = 0;
+    for (int i = 0; i < n_owned; ++i) {
+        const Kind k = i % 5 == 0 ? Kind::boundary : Kind::fluid;
+        p.add_owned({x_owned(rng), y(rng), 0, 0, 1000, 0, 1, id++, k});
+    }
+    for (int i = 0; i < n_ghost; ++i) {
+        const Kind k = i % 3 == 0 ? Kind::mirror : (i % 3 == 1 ? Kind::boundary : Kind::fluid);
+        const double x = i % 2 ? x_west(rng) : x_east(rng);
+        p.add_transient({x, y(rng), 0, 0, 1000, 0, 1, id++, k});
+    }
+    return p;
+}
+
+template <class G> PairSet search(G& grid, const Particles& p) {
+    NeighbourList nl;
+    grid.update(p, window);
+    find_neighbours(grid, p, window, cell, nl);
+    return from_list(p, nl);
+}
+} // namespace
+
+template <class G> class GridTest : public ::testing::Test {};
+using Grids = ::testing::Types<CellList, CellTable>;
+TYPED_TEST_SUITE(GridTest, Grids);
+
+TYPED_TEST(GridTest, MatchesBruteForceOnRandomConfigurations) {
+    for (unsigned seed = 1; seed <= 5; ++seed) {
+        const Particles p = random_configuration(seed, 600, 150);
+        TypeParam grid;
+        const auto expected = brute_force(p);
+        EXPECT_GT(expected.size(), 1000u);
+        EXPECT_EQ(search(grid, p), expected) << "seed " << seed;
+    }
+}
+
+TYPED_TEST(GridTest, MatchesBruteForceOnALatticeWithGhostColumns) {
+    // Lattice points sit exactly on cell edges and at exactly one cell size apart: the
+    // boundary cases of the cell index and of the strict distance test.
+    Particles p;
+    std::int64_t id = 0;
+    for (int i = 0; i <= 24; ++i)
+        for (int j = 0; j <= 12; ++j) {
+            const double x = 3 * cell + i * cell / 4, y = j * cell / 4;
+            p.add_owned({x, y, 0, 0, 1000, 0, 1, id++, j == 0 ? Kind::boundary : Kind::fluid});
+        }
+    for (int j = 0; j <= 12; ++j) {
+        p.add_transient({3 * cell - cell / 4, j * cell / 4, 0, 0, 1000, 0, 1, id++, Kind::fluid});
+        p.add_transient({9 * cell + cell / 2, j * cell / 4, 0, 0, 1000, 0, 1, id++, Kind::fluid});
+    }
+    TypeParam grid;
+    EXPECT_EQ(search(grid, p), brute_force(p));
+}
+
+TYPED_TEST(GridTest, StaysExactAsParticlesMoveLeaveAndArrive) {
+    Particles p = random_configuration(42, 400, 100);
+    TypeParam grid;
+    std::mt19937 rng(3);
+    std::normal_distribution<double> step(0, cell / 3); // many cell changes per update
+    for (int round = 0; round < 6; ++round) {
+        ASSERT_EQ(search(grid, p), brute_force(p)) << "round " << round;
+        grid.remove_transient(p, window);
+        p.drop_transient();
+        // Move everything, then one particle leaves and a new one arrives (migration).
+        for (std::size_t i = 0; i < p.owned(); ++i) {
+            p.x[i] = std::clamp(p.x[i] + step(rng), 3 * cell, 9 * cell - 1e-9);
+            p.y[i] = std::clamp(p.y[i] + step(rng), -cell, 6 * cell);
+        }
+        grid.forget(p.id[7]);
+        p.remove_owned(7);
+        p.add_owned({5 * cell, cell, 0, 0, 1000, 0, 1, 10000 + round, Kind::fluid});
+        std::uniform_real_distribution<double> gx(9 * cell, 10 * cell), gy(0, 5 * cell);
+        for (int g = 0; g < 50; ++g)
+            p.add_transient({gx(rng), gy(rng), 0, 0, 1000, 0, 1, 20000 + 100 * round + g,
+                             Kind::fluid});
+    }
+}
+
+TEST(IdTable, BehavesAsASet) {
+    IdTable t;
+    std::set<std::int64_t> ref;
+    std::mt19937 rng(9);
+    std::uniform_int_distribution<std::int64_t> id(0, 300);
+    for (int k = 0; k < 20000; ++k) {
+        const std::int64_t v = id(rng);
+        if (k % 3 == 0) {
+            EXPECT_EQ(t.erase(v), ref.erase(v) == 1);
+        } else {
+            t.insert(v);
+            ref.insert(v);
+        }
+        ASSERT_EQ(t.size(), ref.size());
+    }
+    std::set<std::int64_t> seen;
+    t.for_each([&](std::int64_t v) { seen.insert(v); });
+    EXPECT_EQ(seen, ref);
+}
+
+TEST(CellWindow, FilesOutsidePositionsInEdgeCells) {
+    EXPECT_EQ(window.column_of(-5.0), 2);
+    EXPECT_EQ(window.column_of(99.0), 9);
+    EXPECT_EQ(window.row_of(-1.0), -1);
+    EXPECT_EQ(window.row_of(99.0), 5);
+    EXPECT_EQ(window.column_of(3 * cell), 3);
+}

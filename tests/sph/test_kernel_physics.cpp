@@ -1,0 +1,96 @@
+#include "sphperf/sph/config.hpp"
+#include "sphperf/sph/kernel.hpp"
+#include "sphperf/sph/physics.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+using namespace sphperf::sph;
+
+namespace {
+constexpr double delta = 0.01;
+const double h = Physics::h_factor * delta * std::sqrt(2.0);
+} // namespace
+
+TEST(QuinticKernel, ValuesAtWholeRadii) {
+    const QuinticKernel k(h);
+    EXPECT_DOUBLE_EQ(k.alpha_d, 7.0 / (478.0 * std::numbers::pi * h * h));
+    EXPECT_NEAR(k.value(0), 66 * k.alpha_d, 1e-9 * k.alpha_d); // 3^5 - 6 2^5 + 15
+    EXPECT_NEAR(k.value(h), 26 * k.alpha_d, 1e-9 * k.alpha_d);  // 2^5 - 6
+    EXPECT_NEAR(k.value(2 * h), 1 * k.alpha_d, 1e-9 * k.alpha_d);
+    EXPECT_EQ(k.value(3 * h), 0.0);
+    EXPECT_EQ(k.value(3.5 * h), 0.0);
+    EXPECT_EQ(k.derivative(3 * h), 0.0);
+    EXPECT_EQ(k.derivative(0), 0.0); // smooth at the origin
+}
+
+TEST(QuinticKernel, DerivativeMatchesFiniteDifferences) {
+    const QuinticKernel k(h);
+    for (double q : {0.3, 0.99, 1.5, 2.2, 2.9}) {
+        const double r = q * h, e = 1e-7 * h;
+        EXPECT_NEAR(k.derivative(r), (k.value(r + e) - k.value(r - e)) / (2 * e),
+                    1e-5 * std::abs(k.alpha_d / h))
+            << "q=" << q;
+    }
+}
+
+TEST(QuinticKernel, NormalisedOnALattice) {
+    // Interior particle of a square lattice with m / rho = delta^2: sum_j V_j W_ij ~ 1.
+    const QuinticKernel k(h);
+    double sum = 0;
+    for (int i = -6; i <= 6; ++i)
+        for (int j = -6; j <= 6; ++j)
+            sum += delta * delta * k.value(delta * std::hypot(i, j));
+    EXPECT_NEAR(sum, 1.0, 1e-3);
+}
+
+TEST(PairTerms, PressureForcesAreAntisymmetricAndConserveMomentum) {
+    const QuinticKernel k(h);
+    const double m = 0.1;
+    const PairInput ij{0.006, -0.004, std::hypot(0.006, 0.004), 0.3, -0.2, 1001, 1003, 150, 420, m};
+    const PairInput ji{-0.006, 0.004, ij.r, -0.3, 0.2, 1003, 1001, 420, 150, m};
+    const auto a = pair_terms(ij, k, 50, 0.1), b = pair_terms(ji, k, 50, 0.1);
+    EXPECT_NEAR(a.ax, -b.ax, 1e-12 * std::abs(a.ax)); // equal masses: m a_i = -m a_j
+    EXPECT_NEAR(a.ay, -b.ay, 1e-12 * std::abs(a.ay));
+    EXPECT_NEAR(a.drho, b.drho, 1e-12 * std::abs(a.drho)); // (v_i - v_j).grad W is symmetric
+    // Repulsive: i is pushed away from j along r_i - r_j.
+    EXPECT_GT(a.ax * ij.dx + a.ay * ij.dy, 0);
+}
+
+TEST(PairTerms, ViscosityActsOnlyOnApproachingPairs) {
+    const QuinticKernel k(h);
+    const PairInput base{0.01, 0, 0.01, 0, 0, 1000, 1000, 0, 0, 0.1};
+    PairInput approaching = base, receding = base;
+    approaching.dvx = -1; // i moves towards j
+    receding.dvx = 1;
+    EXPECT_EQ(pair_terms(receding, k, 50, 0.1).ax, 0.0);
+    EXPECT_GT(pair_terms(approaching, k, 50, 0.1).ax, 0.0); // braking: pushes i back
+    EXPECT_EQ(pair_terms(approaching, k, 50, 0.0).ax, 0.0);
+}
+
+TEST(Physics, TaitEquationOfStateRoundTrips) {
+    Physics ph;
+    EXPECT_EQ(ph.pressure(ph.rho0), 0.0);
+    EXPECT_NEAR(ph.density(ph.pressure(1010)), 1010, 1e-9);
+    EXPECT_NEAR(ph.tait_b(), 50.0 * 50.0 * 1000 / 7, 1e-9);
+}
+
+TEST(Geometry, ThesisParticleCountsAndRankLimits) {
+    Config cfg;
+    cfg.physics.h = Physics::h_factor * cfg.physics.delta * std::sqrt(2.0);
+    cfg.setup = Setup::dambreak;
+    auto g1 = make_geometry(cfg);
+    EXPECT_EQ(g1.fluid_particles(), 7381);
+    EXPECT_EQ(g1.cell_columns, 81);
+    cfg.scale = 2;
+    auto g2 = make_geometry(cfg);
+    EXPECT_EQ(g2.fluid_particles(), 241 * 121);
+    EXPECT_EQ(g2.cell_columns, 162);
+    cfg.setup = Setup::still;
+    cfg.scale = 1;
+    EXPECT_EQ(make_geometry(cfg).fluid_particles(), 19140);
+    cfg.scale = 2;
+    EXPECT_EQ(make_geometry(cfg).fluid_particles(), 641 * 120);
+}
