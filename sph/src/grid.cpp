@@ -18,58 +18,6 @@ void CellList::update(const Particles &p, const CellWindow &w) {
     moves_ = n; // every particle is filed anew each step
 }
 
-void IdTable::grow() {
-    std::vector<std::int64_t> old = std::move(slots_);
-    const std::size_t capacity = old.empty() ? 16 : 2 * old.size();
-    slots_.assign(capacity, empty);
-    shift_ = 64 - std::countr_zero(capacity);
-    size_ = 0;
-    for (std::int64_t k : old)
-        if (k != empty)
-            insert(k);
-}
-
-void IdTable::insert(std::int64_t id) {
-    if (2 * (size_ + 1) > slots_.size()) // keep the load factor <= 1/2
-        grow();
-    const std::size_t mask = slots_.size() - 1;
-    for (std::size_t s = slot_of(id);; s = (s + 1) & mask) {
-        if (slots_[s] == id)
-            return;
-        if (slots_[s] == empty) {
-            slots_[s] = id;
-            ++size_;
-            return;
-        }
-    }
-}
-
-bool IdTable::erase(std::int64_t id) {
-    if (slots_.empty())
-        return false;
-    const std::size_t mask = slots_.size() - 1;
-    std::size_t s = slot_of(id);
-    while (slots_[s] != id) {
-        if (slots_[s] == empty)
-            return false;
-        s = (s + 1) & mask;
-    }
-    // Backward-shift: pull later members of the probe run into the hole.
-    std::size_t hole = s;
-    for (std::size_t t = (hole + 1) & mask; slots_[t] != empty; t = (t + 1) & mask) {
-        const std::size_t home = slot_of(slots_[t]);
-        // Move slots_[t] into the hole unless its home lies cyclically in (hole, t].
-        const bool stays = hole <= t ? (hole < home && home <= t) : (hole < home || home <= t);
-        if (!stays) {
-            slots_[hole] = slots_[t];
-            hole = t;
-        }
-    }
-    slots_[hole] = empty;
-    --size_;
-    return true;
-}
-
 void CellTable::ensure_ids(std::int64_t id) {
     if (id < 0)
         throw std::logic_error("particle ids must be non-negative");
@@ -77,13 +25,20 @@ void CellTable::ensure_ids(std::int64_t id) {
     if (need > home_.size()) {
         const std::size_t size = std::max(need, 2 * home_.size());
         home_.resize(size, -1);
-        index_of_.resize(size, -1);
+        slot_.resize(size, 0);
     }
+}
+
+void CellTable::insert(std::int64_t id, std::uint32_t index, std::int32_t cell) {
+    auto &members = cells_[static_cast<std::size_t>(cell)];
+    home_[static_cast<std::size_t>(id)] = cell;
+    slot_[static_cast<std::size_t>(id)] = static_cast<std::uint32_t>(members.size());
+    members.push_back({id, index});
 }
 
 void CellTable::update(const Particles &p, const CellWindow &w) {
     if (window_cells_ != w.cells()) { // first call, or a new window: start over
-        tables_.assign(static_cast<std::size_t>(w.cells()), IdTable{});
+        cells_.assign(static_cast<std::size_t>(w.cells()), {});
         std::fill(home_.begin(), home_.end(), -1);
         window_cells_ = w.cells();
     }
@@ -94,21 +49,23 @@ void CellTable::update(const Particles &p, const CellWindow &w) {
     if (max_id >= 0)
         ensure_ids(max_id);
     new_cell_.resize(n);
-    // Cell of every particle in parallel; the (few) moves between tables serially.
+    // Particles that stay refresh their index in place (distinct members: no race); the few
+    // that change cell move serially afterwards.
 #pragma omp parallel for schedule(static)
     for (std::size_t i = 0; i < n; ++i) {
+        const auto id = static_cast<std::size_t>(p.id[i]);
         new_cell_[i] = w.cell_of(p.x[i], p.y[i]);
-        index_of_[static_cast<std::size_t>(p.id[i])] = static_cast<std::int32_t>(i);
+        if (home_[id] == new_cell_[i])
+            cells_[static_cast<std::size_t>(home_[id])][slot_[id]].index =
+                static_cast<std::uint32_t>(i);
     }
     moves_ = 0;
     for (std::size_t i = 0; i < n; ++i) {
-        const auto id = static_cast<std::size_t>(p.id[i]);
-        if (home_[id] == new_cell_[i])
+        const std::int64_t id = p.id[i];
+        if (home_[static_cast<std::size_t>(id)] == new_cell_[i])
             continue;
-        if (home_[id] >= 0)
-            tables_[static_cast<std::size_t>(home_[id])].erase(p.id[i]);
-        tables_[static_cast<std::size_t>(new_cell_[i])].insert(p.id[i]);
-        home_[id] = new_cell_[i];
+        forget(id);
+        insert(id, static_cast<std::uint32_t>(i), new_cell_[i]);
         ++moves_;
     }
 }
@@ -121,10 +78,16 @@ void CellTable::remove_transient(const Particles &p, const CellWindow &) {
 void CellTable::forget(std::int64_t id) {
     if (id < 0 || static_cast<std::size_t>(id) >= home_.size())
         return;
-    auto &home = home_[static_cast<std::size_t>(id)];
-    if (home >= 0)
-        tables_[static_cast<std::size_t>(home)].erase(id);
-    home = -1;
+    const auto uid = static_cast<std::size_t>(id);
+    if (home_[uid] < 0)
+        return;
+    // Swap-remove: the cell's last member takes the hole.
+    auto &members = cells_[static_cast<std::size_t>(home_[uid])];
+    const std::uint32_t hole = slot_[uid];
+    members[hole] = members.back();
+    slot_[static_cast<std::size_t>(members[hole].id)] = hole;
+    members.pop_back();
+    home_[uid] = -1;
 }
 
 } // namespace sphperf::sph

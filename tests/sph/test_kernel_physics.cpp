@@ -18,7 +18,7 @@ TEST(QuinticKernel, ValuesAtWholeRadii) {
     const QuinticKernel k(h);
     EXPECT_DOUBLE_EQ(k.alpha_d, 7.0 / (478.0 * std::numbers::pi * h * h));
     EXPECT_NEAR(k.value(0), 66 * k.alpha_d, 1e-9 * k.alpha_d); // 3^5 - 6 2^5 + 15
-    EXPECT_NEAR(k.value(h), 26 * k.alpha_d, 1e-9 * k.alpha_d);  // 2^5 - 6
+    EXPECT_NEAR(k.value(h), 26 * k.alpha_d, 1e-9 * k.alpha_d); // 2^5 - 6
     EXPECT_NEAR(k.value(2 * h), 1 * k.alpha_d, 1e-9 * k.alpha_d);
     EXPECT_EQ(k.value(3 * h), 0.0);
     EXPECT_EQ(k.value(3.5 * h), 0.0);

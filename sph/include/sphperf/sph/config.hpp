@@ -28,7 +28,7 @@ struct Physics {
     double c0 = 50.0;       // numerical speed of sound, m/s (>= 10 x the flow speed)
     double gamma = 7.0;     // Tait exponent
     double gravity = 9.81;  // m/s^2
-    double alpha = 0.1;     // Monaghan artificial viscosity
+    double alpha = 0.2;     // Monaghan artificial viscosity (see sph/README.md)
     double delta = 0.01;    // particle spacing, m
     double h = 0.0;         // smoothing length 0.94 delta sqrt(2)
     int shepard_every = 30; // density re-initialisation period, steps
@@ -65,7 +65,7 @@ struct Geometry {
 struct Config {
     Setup setup = Setup::dambreak;
     GridKind grid = GridKind::table;
-    BoundaryKind boundary = BoundaryKind::mirror;
+    BoundaryKind boundary = BoundaryKind::fixed;
     double scale = 1.0;
     double column_width = 0.3; // a, column setup only
     double dt = 1e-4;

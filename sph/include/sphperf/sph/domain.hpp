@@ -68,12 +68,9 @@ public:
     long long received_west() const { return recv_west_; }
 
 private:
-    template <class T> struct Received {
-        std::vector<T> from_west, from_east;
-    };
+    template <class T> struct Received { std::vector<T> from_west, from_east; };
     template <class T>
-    Received<T> shift(const std::vector<T> &to_west, const std::vector<T> &to_east,
-                      int tag) const;
+    Received<T> shift(const std::vector<T> &to_west, const std::vector<T> &to_east, int tag) const;
     std::vector<std::uint32_t> export_west_, export_east_; // indices sent by the last exchange
     std::size_t ghosts_begin_ = 0, ghosts_from_west_ = 0;  // where received ghosts landed
     MPI_Comm comm_;

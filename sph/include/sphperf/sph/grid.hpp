@@ -71,34 +71,10 @@ private:
     std::size_t moves_ = 0;
 };
 
-// An open-addressing hash set of particle ids (linear probing, backward-shift deletion, so no
-// tombstones accumulate in a table that lives for the whole run).
-class IdTable {
-public:
-    void insert(std::int64_t id);
-    bool erase(std::int64_t id);
-    std::size_t size() const { return size_; }
-    template <class F> void for_each(F &&f) const {
-        for (std::int64_t k : slots_)
-            if (k != empty)
-                f(k);
-    }
-
-private:
-    static constexpr std::int64_t empty = -1;
-    std::size_t slot_of(std::int64_t id) const {
-        // Fibonacci hashing spreads consecutive ids over the slots.
-        return static_cast<std::size_t>((static_cast<std::uint64_t>(id) * 0x9E3779B97F4A7C15ull) >>
-                                        shift_);
-    }
-    void grow();
-    std::vector<std::int64_t> slots_;
-    std::size_t size_ = 0;
-    int shift_ = 64;
-};
-
-// Cell+Table: persistent cells; a particle moves between tables only when it changes cell.
-// Particle ids are dense (setup assigns them), so id -> cell and id -> index are arrays.
+// Cell+Table: persistent cells; a particle moves between cells only when it changes cell.
+// Each cell keeps its members densely as (id, index), so a scan reads contiguous memory. The
+// table keyed by particle id is direct-address: ids are dense (setup assigns them), so
+// id -> (cell, slot) is an array lookup, a perfect hash, and insert and remove are O(1).
 class CellTable {
 public:
     static constexpr std::string_view name = "table";
@@ -109,16 +85,21 @@ public:
     std::size_t last_moves() const { return moves_; }
 
     template <class F> void for_each_in_cell(int cell, const Particles &, F &&f) const {
-        tables_[static_cast<std::size_t>(cell)].for_each([&](std::int64_t id) {
-            f(static_cast<std::uint32_t>(index_of_[static_cast<std::size_t>(id)]));
-        });
+        for (const Member &m : cells_[static_cast<std::size_t>(cell)])
+            f(m.index);
     }
+    std::size_t members(int cell) const { return cells_[static_cast<std::size_t>(cell)].size(); }
 
 private:
+    struct Member {
+        std::int64_t id;
+        std::uint32_t index; // position in the particle arrays, refreshed every update
+    };
     void ensure_ids(std::int64_t id);
-    std::vector<IdTable> tables_;
+    void insert(std::int64_t id, std::uint32_t index, std::int32_t cell);
+    std::vector<std::vector<Member>> cells_;
     std::vector<std::int32_t> home_;     // id -> cell it is filed in, -1 if none
-    std::vector<std::int32_t> index_of_; // id -> index in the particle arrays this step
+    std::vector<std::uint32_t> slot_;    // id -> position in its cell
     std::vector<std::int32_t> new_cell_; // scratch, per particle
     std::size_t moves_ = 0;
     int window_cells_ = -1;

@@ -18,28 +18,32 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
 #pragma omp parallel num_threads(threads) reduction(+ : pairs)
     {
         auto &mine = parts[static_cast<std::size_t>(omp_get_thread_num())];
-        std::vector<std::uint32_t> local;
+        // (id, index) side by side: the sort compares contiguous keys, no gather through p.id.
+        std::vector<std::pair<std::int64_t, std::uint32_t>> local;
 #pragma omp for schedule(static)
         for (std::size_t i = 0; i < owned; ++i) {
             local.clear();
             const int ci = w.column_of(p.x[i]), ri = w.row_of(p.y[i]);
+            const double xi = p.x[i], yi = p.y[i];
+            const bool fluid_i = p.kind[i] == Kind::fluid;
             for (int c = std::max(ci - 1, w.col_begin); c <= std::min(ci + 1, w.col_end - 1); ++c)
                 for (int r = std::max(ri - 1, w.row_begin); r <= std::min(ri + 1, w.row_end - 1);
                      ++r)
                     grid.for_each_in_cell(w.cell(c, r), p, [&](std::uint32_t j) {
-                        if (j == i || !interacting(p.kind[i], p.kind[j]))
+                        if (j == i || (!fluid_i && p.kind[j] != Kind::fluid))
                             return;
-                        const double dx = p.x[i] - p.x[j], dy = p.y[i] - p.y[j];
+                        const double dx = xi - p.x[j], dy = yi - p.y[j];
                         if (dx * dx + dy * dy < r2max)
-                            local.push_back(j);
+                            local.emplace_back(p.id[j], j);
                     });
-            std::sort(local.begin(), local.end(),
-                      [&](std::uint32_t a, std::uint32_t b) { return p.id[a] < p.id[b]; });
-            for (std::uint32_t j : local)
-                if (j >= owned || p.id[j] > p.id[i])
+            std::sort(local.begin(), local.end());
+            const std::int64_t id_i = p.id[i];
+            for (const auto &[id_j, j] : local)
+                if (j >= owned || id_j > id_i)
                     ++pairs; // owned-owned pairs once, pairs with transient particles here
             nl.offsets[i + 1] = static_cast<std::uint32_t>(local.size());
-            mine.insert(mine.end(), local.begin(), local.end());
+            for (const auto &e : local)
+                mine.push_back(e.second);
         }
     }
     for (std::size_t i = 0; i < owned; ++i)
