@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The main job: characterise this node and write results/<hostname>/machine.json.
+# The main job: characterise this node and write results/<hostname>/machine.json, then run a
+# short SPH dam break on it (results/<hostname>/sph_dambreak.json).
 #   scripts/characterise-node.sh [--compare-coretypes SkylakeX,Haswell] [--quick] [--no-build]
 # Builds if needed, then runs STREAM, DGEMM + peak probe (and DGEMM again with the OpenBLAS core
 # type it recommends, if any), and ping-pong on one rank per core. Nothing else should run on
@@ -46,6 +47,9 @@ if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
     stream_args=(--size 2000000 --reps 3)
     dgemm_args=(--sizes 300 --reps 2 --probe-reps 1)
     pingpong_args=(--max-bytes 65536 --max-samples 50)
+    sph_steps=50
+else
+    sph_steps=1000
 fi
 
 echo "== STREAM"
@@ -71,4 +75,8 @@ mkdir -p "$out"
 "$build/bin/machine-profile" --stream "$work/stream.json" --dgemm "$work/dgemm.json" \
     "${alts[@]}" --pingpong "$work/pingpong.json" --out "$work/machine.json"
 cp "$work"/*.json "$out/"
+
+echo "== SPH dam break, $sph_steps steps, 1 rank x $(nproc) threads"
+"$build/bin/sph" --setup dambreak --steps "$sph_steps" --interval "$sph_steps" \
+    --threads "$(nproc)" --quiet --report "$out/sph_dambreak.json"
 echo "profile: $out/machine.json"

@@ -1,6 +1,7 @@
 // STREAM: sustainable memory bandwidth per thread count and affinity (McCalpin's four kernels
 // plus a non-temporal-store triad), with threads bound by hwloc and results validated.
 #include "stream_kernels.hpp"
+#include "stream_width.hpp"
 
 #include "sphperf/cli.hpp"
 #include "sphperf/report.hpp"
@@ -10,6 +11,7 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <iostream>
@@ -32,6 +34,7 @@ struct Config {
     int reps = 10;         // timed repetitions; one more runs first and is dropped
     std::vector<int> threads;
     std::vector<std::string> affinities{"compact", "scatter"};
+    std::vector<int> vector_bits; // empty: every width this CPU supports
     std::optional<std::filesystem::path> json;
     bool quiet = false;
 };
@@ -52,6 +55,7 @@ struct Placement {
 };
 
 struct ConfigResult {
+    int vector_bits;
     int threads;
     Affinity affinity;
     std::array<std::vector<double>, st::kernels.size()> times; // seconds, dropped rep removed
@@ -71,17 +75,11 @@ template <class Body> double timed_parallel(std::size_t n, int threads, Body &&b
     return wall_seconds() - t0;
 }
 
-ConfigResult run_config(const Topology &topo, std::size_t n, int threads, Affinity affinity,
-                        int reps) {
-    ConfigResult r{threads, affinity, {}, {}, {}, {}, {}};
+ConfigResult run_config(const Topology &topo, const st::KernelSet &ks, std::size_t n, int threads,
+                        Affinity affinity, int reps) {
+    ConfigResult r{ks.vector_bits, threads, affinity, {}, {}, {}, {}, {}};
     const auto places = topo.placement(threads, affinity);
     Buffer a = allocate(n), b = allocate(n), c = allocate(n);
-    auto span_of = [n](Buffer &buf, st::Range rg) {
-        return std::span<Real>(buf.get() + rg.begin, rg.end - rg.begin);
-    };
-    auto cspan_of = [n](Buffer &buf, st::Range rg) {
-        return std::span<const Real>(buf.get() + rg.begin, rg.end - rg.begin);
-    };
 
     int team = 0;
     std::atomic<int> bind_failures{0};
@@ -112,17 +110,19 @@ ConfigResult run_config(const Topology &topo, std::size_t n, int threads, Affini
     const Real s = st::Initial<Real>::scalar;
     for (int k = 0; k <= reps; ++k) {
         const std::array<double, 4> t{
-            timed_parallel(n, threads,
-                           [&](int, st::Range rg) { st::copy(cspan_of(a, rg), span_of(c, rg)); }),
             timed_parallel(
                 n, threads,
-                [&](int, st::Range rg) { st::scale(cspan_of(c, rg), span_of(b, rg), s); }),
+                [&](int, st::Range rg) { ks.copy(&a[rg.begin], &c[rg.begin], rg.end - rg.begin); }),
             timed_parallel(n, threads,
                            [&](int, st::Range rg) {
-                               st::add(cspan_of(a, rg), cspan_of(b, rg), span_of(c, rg));
+                               ks.scale(&c[rg.begin], &b[rg.begin], s, rg.end - rg.begin);
+                           }),
+            timed_parallel(n, threads,
+                           [&](int, st::Range rg) {
+                               ks.add(&a[rg.begin], &b[rg.begin], &c[rg.begin], rg.end - rg.begin);
                            }),
             timed_parallel(n, threads, [&](int, st::Range rg) {
-                st::triad(span_of(a, rg), cspan_of(b, rg), cspan_of(c, rg), s);
+                ks.triad(&a[rg.begin], &b[rg.begin], &c[rg.begin], s, rg.end - rg.begin);
             })};
         if (k > 0) // the first repetition warms caches and page tables: dropped, as in STREAM
             for (std::size_t i = 0; i < t.size(); ++i)
@@ -138,7 +138,7 @@ ConfigResult run_config(const Topology &topo, std::size_t n, int threads, Affini
     });
     for (int k = 0; k <= reps; ++k) {
         const double t = timed_parallel(n, threads, [&](int, st::Range rg) {
-            st::triad_nt(span_of(a, rg), cspan_of(b, rg), cspan_of(c, rg), s);
+            ks.triad_nt(&a[rg.begin], &b[rg.begin], &c[rg.begin], s, rg.end - rg.begin);
         });
         if (k > 0)
             r.nt_times.push_back(t);
@@ -183,6 +183,9 @@ Config parse(int argc, char **argv, const Topology &topo) {
         ->delimiter(',');
     app.add_option("--affinity", cfg.affinities, "Affinities to sweep: compact, scatter")
         ->delimiter(',');
+    app.add_option("--vector-bits", cfg.vector_bits,
+                   "Kernel vector widths to sweep: 128, 256, 512 (default: all the CPU has)")
+        ->delimiter(',');
     app.add_option("--json", cfg.json, "Write the JSON report to this file");
     app.add_flag("--quiet", cfg.quiet, "No progress lines on stderr");
     parse_cli(app, argc, argv);
@@ -204,6 +207,27 @@ Config parse(int argc, char **argv, const Topology &topo) {
     if (cfg.affinities.empty())
         throw UsageError("--affinity needs at least one of compact, scatter");
     return cfg;
+}
+
+// The requested widths, each checked against what this CPU and build support.
+std::vector<st::KernelSet> select_kernel_sets(const std::vector<int> &bits) {
+    const auto available = st::available_kernel_sets();
+    if (bits.empty())
+        return available;
+    std::vector<st::KernelSet> out;
+    for (int b : bits) {
+        const auto it = std::find_if(available.begin(), available.end(),
+                                     [b](const st::KernelSet &k) { return k.vector_bits == b; });
+        if (it == available.end()) {
+            std::string have;
+            for (const auto &k : available)
+                have += (have.empty() ? "" : ", ") + std::to_string(k.vector_bits);
+            throw UsageError("--vector-bits " + std::to_string(b) +
+                             " is not available on this CPU, expected one of " + have);
+        }
+        out.push_back(*it);
+    }
+    return out;
 }
 
 std::size_t array_elements(const Config &cfg, const Topology &topo) {
@@ -230,14 +254,15 @@ void print_table(const std::vector<ConfigResult> &results, std::size_t n, int re
                 "last-level cache %.1f MiB\n",
                 n, static_cast<double>(n * sizeof(Real)) / (1 << 20), reps,
                 static_cast<double>(llc) / (1 << 20));
-    std::printf("%7s %-8s %-8s %10s %10s %11s %11s %11s\n", "threads", "affinity", "kernel",
-                "best GB/s", "avg GB/s", "min s", "avg s", "max s");
+    std::printf("%4s %7s %-8s %-8s %10s %10s %11s %11s %11s\n", "bits", "threads", "affinity",
+                "kernel", "best GB/s", "avg GB/s", "min s", "avg s", "max s");
     auto row = [](const ConfigResult &r, std::string_view name, std::span<const double> t,
                   double bytes) {
         const Summary s = summarize(t);
-        std::printf("%7d %-8s %-8s %10.2f %10.2f %11.6f %11.6f %11.6f\n", r.threads,
-                    std::string(to_string(r.affinity)).c_str(), std::string(name).c_str(),
-                    bytes / s.min * 1e-9, bytes / s.avg * 1e-9, s.min, s.avg, s.max);
+        std::printf("%4d %7d %-8s %-8s %10.2f %10.2f %11.6f %11.6f %11.6f\n", r.vector_bits,
+                    r.threads, std::string(to_string(r.affinity)).c_str(),
+                    std::string(name).c_str(), bytes / s.min * 1e-9, bytes / s.avg * 1e-9, s.min,
+                    s.avg, s.max);
     };
     for (const auto &r : results) {
         for (std::size_t k = 0; k < st::kernels.size(); ++k)
@@ -254,15 +279,17 @@ int run(int argc, char **argv) {
     const std::size_t n = array_elements(cfg, topo);
     omp_set_dynamic(0);
 
+    const std::vector<st::KernelSet> kernel_sets = select_kernel_sets(cfg.vector_bits);
     std::vector<ConfigResult> results;
-    const std::size_t total = cfg.threads.size() * cfg.affinities.size();
+    const std::size_t total = cfg.threads.size() * cfg.affinities.size() * kernel_sets.size();
     for (int threads : cfg.threads)
-        for (const auto &aff : cfg.affinities) {
-            results.push_back(run_config(topo, n, threads, parse_affinity(aff), cfg.reps));
-            if (!cfg.quiet)
-                std::fprintf(stderr, "stream: %zu/%zu done (threads=%d affinity=%s)\n",
-                             results.size(), total, threads, aff.c_str());
-        }
+        for (const auto &aff : cfg.affinities)
+            for (const auto &ks : kernel_sets) {
+                results.push_back(run_config(topo, ks, n, threads, parse_affinity(aff), cfg.reps));
+                if (!cfg.quiet)
+                    std::fprintf(stderr, "stream: %zu/%zu done (threads=%d affinity=%s bits=%d)\n",
+                                 results.size(), total, threads, aff.c_str(), ks.vector_bits);
+            }
 
     nlohmann::json report = report_header("stream", topo);
     report["array_elements"] = n;
@@ -270,12 +297,15 @@ int run(int argc, char **argv) {
     report["array_bytes"] = n * sizeof(Real);
     report["repetitions_timed"] = cfg.reps;
     report["repetitions_dropped"] = 1;
-    report["nt_store_isa"] = st::nt_store_isa();
+    for (const auto &ks : kernel_sets)
+        report["vector_bits_measured"].push_back(ks.vector_bits);
     const auto &triad_spec = st::kernels[static_cast<int>(st::Kernel::triad)];
     double best_triad = 0, best_nt = 0;
     bool all_valid = true;
     for (const auto &r : results) {
-        nlohmann::json j{{"threads", r.threads}, {"affinity", to_string(r.affinity)}};
+        nlohmann::json j{{"threads", r.threads},
+                         {"affinity", to_string(r.affinity)},
+                         {"vector_bits", r.vector_bits}};
         for (std::size_t k = 0; k < st::kernels.size(); ++k)
             j["kernels"][st::kernels[k].name] =
                 kernel_json(r.times[k], st::bytes_moved<Real>(st::kernels[k], n));

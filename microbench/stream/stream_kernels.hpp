@@ -7,10 +7,6 @@
 #include <span>
 #include <string_view>
 
-#if defined(__AVX512F__) || defined(__AVX__) || defined(__SSE2__)
-#include <immintrin.h>
-#endif
-
 namespace sphperf::stream {
 
 enum class Kernel { copy, scale, add, triad };
@@ -57,46 +53,6 @@ template <class T> void add(std::span<const T> a, std::span<const T> b, std::spa
 template <class T> void triad(std::span<T> a, std::span<const T> b, std::span<const T> c, T s) {
     for (std::size_t j = 0; j < a.size(); ++j)
         a[j] = b[j] + s * c[j];
-}
-
-// Which instruction set the non-temporal triad uses in this build.
-constexpr std::string_view nt_store_isa() {
-#if defined(__AVX512F__)
-    return "avx512";
-#elif defined(__AVX__)
-    return "avx";
-#elif defined(__SSE2__)
-    return "sse2";
-#else
-    return "none";
-#endif
-}
-
-// Triad with streaming stores that bypass the cache (no write-allocate read of `a`).
-// `a` must start on a 64-byte boundary; the tail is stored normally.
-inline void triad_nt(std::span<double> a, std::span<const double> b, std::span<const double> c,
-                     double s) {
-    std::size_t j = 0;
-#if defined(__AVX512F__)
-    const __m512d vs = _mm512_set1_pd(s);
-    for (; j + 8 <= a.size(); j += 8)
-        _mm512_stream_pd(&a[j],
-                         _mm512_fmadd_pd(vs, _mm512_loadu_pd(&c[j]), _mm512_loadu_pd(&b[j])));
-#elif defined(__AVX__)
-    const __m256d vs = _mm256_set1_pd(s);
-    for (; j + 4 <= a.size(); j += 4)
-        _mm256_stream_pd(&a[j], _mm256_add_pd(_mm256_loadu_pd(&b[j]),
-                                              _mm256_mul_pd(vs, _mm256_loadu_pd(&c[j]))));
-#elif defined(__SSE2__)
-    const __m128d vs = _mm_set1_pd(s);
-    for (; j + 2 <= a.size(); j += 2)
-        _mm_stream_pd(&a[j], _mm_add_pd(_mm_loadu_pd(&b[j]), _mm_mul_pd(vs, _mm_loadu_pd(&c[j]))));
-#endif
-    for (; j < a.size(); ++j)
-        a[j] = b[j] + s * c[j];
-#if defined(__SSE2__)
-    _mm_sfence(); // streaming stores are weakly ordered: make them visible before timing stops
-#endif
 }
 
 struct Validation {

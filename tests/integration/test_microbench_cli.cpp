@@ -8,6 +8,7 @@ namespace fs = std::filesystem;
 
 namespace {
 const std::string tiny_stream = " --size 200000 --reps 2 --quiet";
+
 const std::string tiny_dgemm = " --sizes 64,96 --reps 2 --probe-reps 1 --quiet";
 const std::string tiny_pingpong = " --max-bytes 65536 --max-samples 40 --max-seconds 0.2 "
                                   "--latency-round-trips 20 --bandwidth-round-trips 2 --quiet";
@@ -15,7 +16,8 @@ const std::string tiny_pingpong = " --max-bytes 65536 --max-samples 40 --max-sec
 
 TEST(StreamCli, TinyRunWritesACompleteReport) {
     const auto dir = scratch("stream");
-    const auto r = run(bin("stream") + tiny_stream + " --json " + (dir / "s.json").string());
+    const auto r =
+        run(bin("stream") + tiny_stream + " --threads 1 --json " + (dir / "s.json").string());
     ASSERT_EQ(r.code, 0) << r.err;
     const auto j = load(dir / "s.json");
     expect_envelope(j, "stream");
@@ -26,6 +28,11 @@ TEST(StreamCli, TinyRunWritesACompleteReport) {
             EXPECT_TRUE(j["results"][0]["kernels"][k].contains(f)) << k << "." << f;
     EXPECT_TRUE(j["valid"].get<bool>());
     EXPECT_EQ(j["array_elements"].get<int>(), 200000);
+    // By default every vector width the CPU supports is measured, 128 bits at least.
+    const auto widths = j["vector_bits_measured"];
+    ASSERT_GE(widths.size(), 1u);
+    EXPECT_EQ(widths[0], 128);
+    EXPECT_EQ(j["results"].size(), 2 * widths.size()); // x 2 affinities, 1 thread count
     expect_figures_sane(j);
     EXPECT_NE(r.out.find("triad"), std::string::npos); // human table on stdout
 }
@@ -33,10 +40,11 @@ TEST(StreamCli, TinyRunWritesACompleteReport) {
 TEST(StreamCli, SweepsRequestedThreadsAndAffinities) {
     const auto dir = scratch("stream_sweep");
     const auto r = run(bin("stream") + tiny_stream + " --threads 1,2 --affinity compact,scatter" +
-                       " --json " + (dir / "s.json").string());
+                       " --vector-bits 128 --json " + (dir / "s.json").string());
     ASSERT_EQ(r.code, 0) << r.err;
     const auto j = load(dir / "s.json");
     ASSERT_EQ(j["results"].size(), 4u);
+    EXPECT_EQ(j["results"][0]["vector_bits"], 128);
     EXPECT_EQ(j["results"][3]["threads"], 2);
     EXPECT_EQ(j["results"][3]["affinity"], "scatter");
     EXPECT_EQ(j["results"][3]["placement"].size(), 2u);
@@ -144,6 +152,8 @@ INSTANTIATE_TEST_SUITE_P(
                  "diagonal"},
         BadInput{"stream_threads", bin("stream") + " --size 1000 --threads 0 --json @OUT@",
                  "--threads 0"},
+        BadInput{"stream_vector_bits", bin("stream") + " --size 1000 --vector-bits 96 --json @OUT@",
+                 "--vector-bits 96"},
         BadInput{"stream_unwritable", bin("stream") + " --size 1000 --json /nonexistent/dir/s.json",
                  "/nonexistent/dir/s.json"},
         BadInput{"stream_unknown_option", bin("stream") + " --sise 1000 --json @OUT@", "sise"},

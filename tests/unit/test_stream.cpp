@@ -1,4 +1,5 @@
 #include "stream_kernels.hpp"
+#include "stream_width.hpp"
 
 #include <gtest/gtest.h>
 
@@ -58,18 +59,35 @@ TEST(Stream, ValidationCatchesAWrongIterationCount) {
     EXPECT_FALSE(st::validate<double>(x.a, x.b, x.c, st::expected_values<double>(3)).ok);
 }
 
-TEST(Stream, NonTemporalTriadEqualsTriad) {
-    constexpr std::size_t n = 1029; // not a multiple of the vector width: exercises the tail
-    alignas(64) static double a[n];
+TEST(Stream, EveryVectorWidthComputesTheSameKernels) {
+    constexpr std::size_t n = 1029; // not a multiple of any vector width: exercises the tails
     std::vector<double> b(n), c(n), ref(n);
     for (std::size_t j = 0; j < n; ++j) {
         b[j] = 0.5 * j;
         c[j] = 1.0 / (j + 1);
     }
     st::triad<double>(ref, b, c, 3.0);
-    st::triad_nt(a, b, c, 3.0);
-    for (std::size_t j = 0; j < n; ++j)
-        ASSERT_DOUBLE_EQ(a[j], ref[j]) << j;
+    const auto sets = st::available_kernel_sets();
+    ASSERT_FALSE(sets.empty());
+    EXPECT_EQ(sets.front().vector_bits, 128);
+    for (const auto &ks : sets) {
+        alignas(64) static double a[n];
+        std::fill(a, a + n, 0.0);
+        ks.triad_nt(a, b.data(), c.data(), 3.0, n);
+        for (std::size_t j = 0; j < n; ++j)
+            ASSERT_DOUBLE_EQ(a[j], ref[j]) << ks.vector_bits << " bits, nt, j=" << j;
+        std::fill(a, a + n, 0.0);
+        ks.triad(a, b.data(), c.data(), 3.0, n);
+        for (std::size_t j = 0; j < n; ++j)
+            ASSERT_DOUBLE_EQ(a[j], ref[j]) << ks.vector_bits << " bits, j=" << j;
+        std::vector<double> x(n);
+        ks.copy(b.data(), x.data(), n);
+        EXPECT_EQ(x, b);
+        ks.scale(b.data(), x.data(), 2.0, n);
+        EXPECT_DOUBLE_EQ(x[n - 1], 2.0 * b[n - 1]);
+        ks.add(b.data(), c.data(), x.data(), n);
+        EXPECT_DOUBLE_EQ(x[7], b[7] + c[7]);
+    }
 }
 
 TEST(Stream, ChunksPartitionTheArrayOnAlignedBoundaries) {

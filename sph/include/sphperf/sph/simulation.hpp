@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -27,7 +28,10 @@ public:
     Simulation(const Config &cfg, const Geometry &geo, Domain &dom)
         : cfg_(cfg), geo_(geo), phys_(cfg.physics), dom_(dom), window_(dom.window(geo.cell_rows)) {}
 
-    RunRecord run();
+    // `observe(step, particles)`, if given, is called after every step (tests, probes).
+    using Observer = std::function<void(std::int64_t, const Particles &)>;
+    RunRecord run(const Observer &observe = {});
+    const Particles &particles() const { return p_; }
 
 private:
     void load_initial();
@@ -208,7 +212,7 @@ template <CellGrid Grid> void Simulation<Grid>::write_snapshot(std::int64_t step
                      dom_.rank(), dom_.ranks());
 }
 
-template <CellGrid Grid> RunRecord Simulation<Grid>::run() {
+template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe) {
     record_.config = cfg_;
     record_.geometry = geo_;
     record_.ranks = dom_.ranks();
@@ -264,6 +268,8 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run() {
         if (cfg_.vtk_dir && s % cfg_.vtk_every == 0)
             write_snapshot(s);
         progress.update(s);
+        if (observe)
+            observe(s, p_);
     }
     dom_.barrier();
     record_.wall_s = wall_seconds() - start;

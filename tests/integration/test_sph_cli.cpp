@@ -1,0 +1,218 @@
+// The sph executable as a user runs it: conservation across 1, 2 and 3 ranks, agreement of the
+// grid schemes, validation against dam-break experiments, and bad input.
+#include "run.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+using namespace sphperf::testing;
+namespace fs = std::filesystem;
+
+namespace {
+nlohmann::json run_sph(const std::string &name, int ranks, const std::string &args) {
+    const auto dir = scratch("sph_" + name);
+    const auto report = dir / "sph.json";
+    const auto r =
+        run(mpirun(ranks) + bin("sph") + " --quiet " + args + " --report " + report.string());
+    EXPECT_EQ(r.code, 0) << r.err;
+    if (r.code != 0)
+        return {};
+    return load(report);
+}
+
+// Front position interpolated at dimensionless time T = t sqrt(2 g / a), in units of a.
+double front_at(const nlohmann::json &j, double T) {
+    const double a = j["config"]["dam_width"].get<double>();
+    const double k = std::sqrt(2 * 9.81 / a);
+    const auto &t = j["physics"]["time_s"], &x = j["physics"]["front_x"];
+    for (std::size_t i = 0; i + 1 < t.size(); ++i) {
+        const double t0 = t[i].get<double>() * k, t1 = t[i + 1].get<double>() * k;
+        if (t0 <= T && T <= t1) {
+            const double x0 = x[i].get<double>(), x1 = x[i + 1].get<double>();
+            return (x0 + (x1 - x0) * (T - t0) / (t1 - t0)) / a;
+        }
+    }
+    ADD_FAILURE() << "T=" << T << " outside the run";
+    return 0;
+}
+
+struct Observation {
+    double T, Z;
+};
+std::vector<Observation> load_experiment(const std::string &file, int t_col, int z_col) {
+    std::ifstream in(std::string(SPHPERF_TEST_DATA_DIR) + "/" + file);
+    EXPECT_TRUE(in) << file;
+    std::vector<Observation> out;
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.empty() || line[0] == '#' || !std::isdigit(static_cast<unsigned char>(line[0])))
+            continue;
+        std::vector<double> cols;
+        std::stringstream ss(line);
+        std::string cell;
+        while (std::getline(ss, cell, ','))
+            cols.push_back(std::stod(cell));
+        out.push_back(
+            {cols[static_cast<std::size_t>(t_col)], cols[static_cast<std::size_t>(z_col)]});
+    }
+    return out;
+}
+} // namespace
+
+TEST(SphCli, CountAndMassConservedAndFrontIndependentOfRanks) {
+    const std::string args = "--steps 2000 --interval 500 --threads 1";
+    std::vector<nlohmann::json> runs;
+    for (int ranks : {1, 2, 3}) {
+        runs.push_back(run_sph("conserve" + std::to_string(ranks), ranks, args));
+        const auto &j = runs.back();
+        ASSERT_FALSE(j.is_null());
+        expect_envelope(j, "sph");
+        EXPECT_EQ(j["config"]["ranks"], ranks);
+        ASSERT_EQ(j["intervals"].size(), 4u);
+        for (const auto &iv : j["intervals"]) {
+            double field = 0, columns = 0;
+            for (const auto &r : iv["ranks"])
+                field += r["field"].get<double>();
+            for (const auto &c : iv["columns"])
+                columns += c.get<double>();
+            EXPECT_EQ(field, 7381);
+            EXPECT_EQ(columns, 7381);
+            EXPECT_EQ(iv["ranks"].size(), static_cast<std::size_t>(ranks));
+        }
+        const auto &mass = j["physics"]["mass"];
+        for (const auto &m : mass)
+            EXPECT_NEAR(m.get<double>(), mass[0].get<double>(), 1e-9 * mass[0].get<double>());
+    }
+    const double front1 = runs[0]["physics"]["front_x"].back().get<double>();
+    EXPECT_GT(front1, 1.25); // the surge has started moving
+    for (int k : {1, 2})
+        EXPECT_NEAR(runs[k]["physics"]["front_x"].back().get<double>(), front1, 0.01 * front1)
+            << k + 1 << " ranks";
+    // Ranks did exchange ghosts and migrate particles.
+    EXPECT_GT(runs[2]["intervals"][3]["ranks"][0]["exported"].get<double>(), 0);
+}
+
+TEST(SphCli, GridsGiveTheSameTrajectory) {
+    for (const char *boundary : {"fixed", "mirror"}) {
+        const std::string args = std::string("--steps 500 --interval 250 --boundary ") + boundary;
+        const auto list = run_sph(std::string("list_") + boundary, 1, args + " --grid list");
+        const auto table = run_sph(std::string("table_") + boundary, 1, args + " --grid table");
+        ASSERT_FALSE(list.is_null());
+        ASSERT_FALSE(table.is_null());
+        const double a = list["physics"]["front_x"].back().get<double>();
+        const double b = table["physics"]["front_x"].back().get<double>();
+        EXPECT_NEAR(a, b, 1e-6 * a) << boundary;
+        EXPECT_EQ(list["intervals"][1]["ranks"][0]["pairs"],
+                  table["intervals"][1]["ranks"][0]["pairs"]);
+    }
+}
+
+TEST(SphCli, ReportCarriesTheDocumentedFields) {
+    const auto snap = scratch("sph_vtk") / "snap";
+    const auto j =
+        run_sph("fields", 2, "--steps 20 --interval 10 --vtk " + snap.string() + " --vtk-every 10");
+    ASSERT_FALSE(j.is_null());
+    expect_keys(j, {"/schema",
+                    "/git_commit",
+                    "/config/setup",
+                    "/config/grid",
+                    "/config/boundary",
+                    "/config/scale",
+                    "/config/delta",
+                    "/config/dt",
+                    "/config/steps",
+                    "/config/ranks",
+                    "/config/threads",
+                    "/particles/field",
+                    "/particles/virtual",
+                    "/wall_s",
+                    "/particle_steps_per_s",
+                    "/neighbour_interactions_per_s",
+                    "/peak_rss_bytes",
+                    "/intervals/0/step",
+                    "/intervals/0/columns",
+                    "/intervals/0/ranks/0/field",
+                    "/intervals/0/ranks/0/virtual",
+                    "/intervals/0/ranks/0/ghost",
+                    "/intervals/0/ranks/0/pairs",
+                    "/intervals/0/ranks/0/exported",
+                    "/intervals/0/ranks/0/migrated",
+                    "/intervals/0/ranks/0/idle_s",
+                    "/intervals/0/ranks/0/timers/pairs_s",
+                    "/intervals/0/ranks/0/timers/grid_s",
+                    "/intervals/0/ranks/0/timers/comp_s",
+                    "/intervals/0/ranks/0/timers/comm_s",
+                    "/physics/time_s",
+                    "/physics/front_x",
+                    "/physics/mass",
+                    "/physics/kinetic_energy"});
+    EXPECT_EQ(j["intervals"][0]["columns"].size(), 81u);
+    EXPECT_EQ(j["peak_rss_bytes"].size(), 2u);
+    // Rank 1 has no fluid at the start of a dam break: it idles.
+    EXPECT_GT(j["intervals"][0]["ranks"][1]["idle_s"].get<double>(), 0);
+    EXPECT_TRUE(fs::exists(snap / "sph.pvd"));
+    EXPECT_TRUE(fs::exists(snap / "sph_000002_r001.vtu"));
+}
+
+TEST(SphCli, WaterColumnFrontMatchesExperiments) {
+    // a = 0.3 m, 1891 particles, T* up to 2.6: the surge front Z(T) within 10% of both data sets
+    // for T in [1, 2.5] with the default (fixed, no-slip-like) walls.
+    const auto j = run_sph("column", 1, "--setup column --end-time 0.33 --interval 1000");
+    ASSERT_FALSE(j.is_null());
+    int compared = 0;
+    for (const auto &[file, t_col, z_col] :
+         {std::tuple{"martin_moyce_n2_2.csv", 1, 2}, std::tuple{"koshizuka_oka_1996.csv", 0, 1}})
+        for (const auto &o : load_experiment(file, t_col, z_col)) {
+            if (o.T < 1 || o.T > 2.5)
+                continue;
+            const double z = front_at(j, o.T);
+            EXPECT_NEAR(z, o.Z, 0.10 * o.Z) << file << " T=" << o.T;
+            ++compared;
+        }
+    EXPECT_GE(compared, 8);
+}
+
+struct SphBadInput {
+    std::string name, args, expect;
+    int ranks = 1;
+};
+void PrintTo(const SphBadInput &b, std::ostream *os) {
+    *os << b.name;
+}
+class SphBadInputTest : public ::testing::TestWithParam<SphBadInput> {};
+
+TEST_P(SphBadInputTest, ExitsTwoWithOneLineAndNoFile) {
+    const auto dir = scratch("sph_bad_" + GetParam().name);
+    std::string args = GetParam().args;
+    if (args.find("--report") == std::string::npos)
+        args += " --report " + (dir / "r.json").string();
+    const auto r = run(mpirun(GetParam().ranks) + bin("sph") + " " + args);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(r.err_lines(), 1) << r.err;
+    EXPECT_NE(r.err.find(GetParam().expect), std::string::npos) << r.err;
+    EXPECT_TRUE(fs::is_empty(dir)) << "left a file behind";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Sph, SphBadInputTest,
+    ::testing::Values(SphBadInput{"setup", "--setup tsunami --steps 1", "tsunami"},
+                      SphBadInput{"grid", "--grid octree --steps 1", "octree"},
+                      SphBadInput{"boundary", "--boundary sticky --steps 1", "sticky"},
+                      SphBadInput{"scale_zero", "--scale 0 --steps 1", "--scale 0"},
+                      SphBadInput{"scale_negative", "--scale -1 --steps 1", "--scale -1"},
+                      SphBadInput{"unstable_dt", "--dt 2e-4 --steps 1", "unstable"},
+                      SphBadInput{"no_length", "", "--steps"},
+                      SphBadInput{"too_many_ranks", "--scale 0.02 --steps 1",
+                                  "3 ranks exceed the 2", 3},
+                      SphBadInput{"report_path", "--steps 1 --report /nonexistent/dir/r.json",
+                                  "/nonexistent/dir/r.json"}),
+    [](const auto &info) { return info.param.name; });
+
+TEST(SphCli, Help) {
+    const auto r = run(bin("sph") + " --help");
+    EXPECT_EQ(r.code, 0);
+    EXPECT_NE(r.out.find("--grid"), std::string::npos);
+}
