@@ -26,7 +26,7 @@ BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build
 
 def run_sph(grid, setup, scale, threads, ranks, steps, tmp):
     report = os.path.join(tmp, "sph.json")
-    cmd = ["bash", os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(ranks),
+    cmd = ["bash", os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(ranks), "-t", str(threads),
            os.path.join(BIN, "sph"), "--quiet", "--grid", grid, "--setup", setup, "--scale",
            str(scale), "--threads", str(threads), "--steps", str(steps), "--interval",
            str(steps), "--report", report]

@@ -1,24 +1,32 @@
 #!/usr/bin/env bash
 # Runs an MPI program with the flags this machine needs, so nobody has to remember them:
-#   scripts/mpirun.sh -n RANKS PROGRAM [ARGS...]
-# Adds --allow-run-as-root when run as root, and --oversubscribe (no binding) only when RANKS
-# exceeds the cores; otherwise ranks are bound to cores so ping-pong locality is meaningful.
-# mpirun's own multi-line notices are silenced (--quiet) so a program's one-line error stays one
-# line; set SPHPERF_MPIRUN_VERBOSE=1 to see them when diagnosing a launch problem.
+#   scripts/mpirun.sh -n RANKS [-t THREADS] PROGRAM [ARGS...]
+# THREADS (OpenMP threads per rank; default OMP_NUM_THREADS, else 1) is exported as
+# OMP_NUM_THREADS and each rank is bound to that many cores, when RANKS x THREADS fit the
+# cores; otherwise ranks are not bound and --oversubscribe is added. --allow-run-as-root is
+# added when run as root. mpirun's own multi-line notices are silenced (--quiet) so a program's
+# one-line error stays one line; set SPHPERF_MPIRUN_VERBOSE=1 to see them.
 set -euo pipefail
 
-usage() { echo "usage: $(basename "$0") -n RANKS PROGRAM [ARGS...]" >&2; exit 2; }
+usage() { echo "usage: $(basename "$0") -n RANKS [-t THREADS] PROGRAM [ARGS...]" >&2; exit 2; }
+positive() {
+    case "$2" in
+        ''|*[!0-9]*|0) echo "mpirun.sh: $1 '$2' is not a positive integer" >&2; exit 2 ;;
+    esac
+}
 
 ranks=""
-if [ "${1:-}" = "-n" ] || [ "${1:-}" = "-np" ]; then
-    ranks="${2:-}"
-    shift 2 || usage
-fi
+threads="${OMP_NUM_THREADS:-1}"
+while [ $# -gt 0 ]; do
+    case "$1" in
+        -n|-np) [ $# -ge 2 ] || usage; ranks="$2"; shift 2 ;;
+        -t) [ $# -ge 2 ] || usage; threads="$2"; shift 2 ;;
+        *) break ;;
+    esac
+done
 [ -n "$ranks" ] && [ $# -ge 1 ] || usage
-case "$ranks" in
-    ''|*[!0-9]*) echo "mpirun.sh: rank count '$ranks' is not a positive integer" >&2; exit 2 ;;
-esac
-[ "$ranks" -ge 1 ] || { echo "mpirun.sh: rank count '$ranks' is not a positive integer" >&2; exit 2; }
+positive "rank count" "$ranks"
+positive "thread count" "$threads"
 
 command -v mpirun >/dev/null || { echo "mpirun.sh: mpirun not found; run scripts/install-deps.sh" >&2; exit 1; }
 
@@ -30,9 +38,10 @@ fi
 if [ "$(id -u)" -eq 0 ]; then
     flags+=(--allow-run-as-root)
 fi
-if [ "$ranks" -gt "$cores" ]; then
+if [ $((ranks * threads)) -gt "$cores" ]; then
     flags+=(--oversubscribe --bind-to none)
 else
-    flags+=(--bind-to core)
+    flags+=(--map-by "slot:PE=$threads" --bind-to core)
 fi
-exec mpirun "${flags[@]}" -n "$ranks" "$@"
+export OMP_NUM_THREADS="$threads"
+exec mpirun "${flags[@]}" -x OMP_NUM_THREADS -n "$ranks" "$@"

@@ -64,6 +64,7 @@ nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream
         p["stream_triad_by_threads"].push_back(
             {{"threads", r.at("threads")},
              {"affinity", r.at("affinity")},
+             {"vector_bits", r.value("vector_bits", 0)},
              {"best_GBps", r.at("/kernels/triad/best_GBps"_json_pointer)}});
 
     p["dgemm_coretypes"].push_back(coretype_entry(dgemm));

@@ -85,6 +85,10 @@ Geometry make_geometry(const Config &cfg) {
     case Setup::dambreak:
         g.dam_width = dam_width_m * cfg.scale;
         g.dam_height = dam_height_m * cfg.scale;
+        // Particles are centres of delta x delta squares: the first row and column sit half a
+        // spacing from the wall and floor surfaces, as wall particles sit half a spacing outside.
+        g.dam_x0 = delta / 2;
+        g.dam_y0 = delta / 2;
         g.fluid_columns = lattice_count(g.dam_width, delta);
         g.fluid_rows = lattice_count(g.dam_height, delta);
         break;
@@ -102,6 +106,8 @@ Geometry make_geometry(const Config &cfg) {
     case Setup::column:
         g.dam_width = cfg.column_width * cfg.scale;
         g.dam_height = 2 * g.dam_width;
+        g.dam_x0 = delta / 2;
+        g.dam_y0 = delta / 2;
         g.fluid_columns = lattice_count(g.dam_width, delta);
         g.fluid_rows = lattice_count(g.dam_height, delta);
         break;

@@ -112,6 +112,16 @@ int run(int argc, char **argv, int rank, int ranks) {
     if (cfg.threads > 0)
         omp_set_num_threads(cfg.threads);
 
+    if (rank == 0) {
+        // Threads beyond the cores this rank may run on only take turns: say so.
+        const Topology topo;
+        const int bound = topo.this_process_binding().weight();
+        if (bound > 0 && omp_get_max_threads() > bound)
+            std::fprintf(stderr,
+                         "sph: warning: %d threads share the %d core(s) this rank is bound to; "
+                         "launch with scripts/mpirun.sh -n RANKS -t THREADS\n",
+                         omp_get_max_threads(), bound);
+    }
     Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
     const RunRecord rec = cfg.grid == GridKind::list
                               ? Simulation<CellList>(cfg, geo, domain).run()

@@ -15,7 +15,9 @@ namespace sphperf::sph {
 std::array<double, RankInterval::fields> RankInterval::pack() const {
     std::array<double, fields> v{steps,        field,    virtual_, ghost,      pairs,
                                  interactions, exported, migrated, cell_moves, idle_s};
-    std::copy(timers.begin(), timers.end(), v.begin() + 10);
+    v[10] = escaped;
+    v[11] = reflected;
+    std::copy(timers.begin(), timers.end(), v.begin() + 12);
     return v;
 }
 
@@ -31,7 +33,9 @@ RankInterval RankInterval::unpack(const double *v) {
     r.migrated = v[7];
     r.cell_moves = v[8];
     r.idle_s = v[9];
-    std::copy_n(v + 10, r.timers.size(), r.timers.begin());
+    r.escaped = v[10];
+    r.reflected = v[11];
+    std::copy_n(v + 12, r.timers.size(), r.timers.begin());
     return r;
 }
 
@@ -178,7 +182,8 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"virtual", r.virtual_},      {"ghost", r.ghost},
                               {"pairs", r.pairs},           {"interactions", r.interactions},
                               {"exported", r.exported},     {"migrated", r.migrated},
-                              {"cell_moves", r.cell_moves}, {"idle_s", r.idle_s}};
+                              {"cell_moves", r.cell_moves}, {"idle_s", r.idle_s},
+                              {"escaped", r.escaped},       {"reflected", r.reflected}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)
                 jr["timers"][phase_keys[k]] = r.timers[k];
             jiv["ranks"].push_back(jr);

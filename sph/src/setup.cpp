@@ -26,6 +26,8 @@ int wall_layers(const Physics &phys) {
 
 std::vector<ParticleRecord> make_walls(const Geometry &geo, const Physics &phys,
                                        std::int64_t first_id) {
+    // Layers at (k + 1/2) delta outside the wall surfaces x = 0, x = B and y = 0, so the fluid,
+    // whose first particles sit delta / 2 inside, is one spacing from the first layer.
     std::vector<ParticleRecord> out;
     const int layers = wall_layers(phys);
     const double d = phys.delta;
@@ -38,13 +40,14 @@ std::vector<ParticleRecord> make_walls(const Geometry &geo, const Physics &phys,
         out.push_back(
             {x, y, 0, 0, rho, phys.pressure(rho), phys.particle_mass(), id++, Kind::boundary});
     };
-    const int floor_count = static_cast<int>(std::floor(geo.tank_length / d + 1e-9));
-    for (int k = 1; k <= layers; ++k) {
-        for (int i = -layers; i <= floor_count + layers; ++i) // floor, corners included
-            add(i * d, -k * d);
-        for (int j = 0; j * d <= geo.ceiling + 1e-9; ++j) { // side walls
-            add(-k * d, j * d);
-            add(geo.tank_length + k * d, j * d);
+    const double reach = (layers - 0.5) * d; // outermost layer
+    for (int k = 0; k < layers; ++k) {
+        const double off = (k + 0.5) * d;
+        for (double x = -reach; x <= geo.tank_length + reach + 1e-9; x += d) // floor and corners
+            add(x, -off);
+        for (double y = d / 2; y <= geo.ceiling + 1e-9; y += d) { // side walls
+            add(-off, y);
+            add(geo.tank_length + off, y);
         }
     }
     return out;
@@ -88,8 +91,30 @@ std::size_t add_mirrors(Particles &p, const Geometry &geo, const Physics &phys,
 
 namespace sphperf::sph {
 
-void refresh_mirrors(Particles &p, std::size_t first, const std::vector<std::uint32_t> &sources,
-                     const Physics &) {
+std::size_t reflect_at_walls(Particles &p, const Geometry &geo) {
+    std::size_t reflected = 0;
+    for (std::size_t i = 0; i < p.fluid(); ++i) {
+        bool hit = false;
+        if (p.x[i] < 0) {
+            p.x[i] = -p.x[i];
+            p.vx[i] = -p.vx[i];
+            hit = true;
+        } else if (p.x[i] > geo.tank_length) {
+            p.x[i] = 2 * geo.tank_length - p.x[i];
+            p.vx[i] = -p.vx[i];
+            hit = true;
+        }
+        if (p.y[i] < 0) {
+            p.y[i] = -p.y[i];
+            p.vy[i] = -p.vy[i];
+            hit = true;
+        }
+        reflected += hit;
+    }
+    return reflected;
+}
+
+void refresh_mirrors(Particles &p, std::size_t first, const std::vector<std::uint32_t> &sources) {
     for (std::size_t k = 0; k < sources.size(); ++k)
         p.rho[first + k] = p.rho[sources[k]];
 }

@@ -79,6 +79,8 @@ TEST(SphCli, CountAndMassConservedAndFrontIndependentOfRanks) {
             for (const auto &c : iv["columns"])
                 columns += c.get<double>();
             EXPECT_EQ(field, 7381);
+            for (const auto &r : iv["ranks"])
+                EXPECT_EQ(r["escaped"], 0) << "fluid outside the tank";
             EXPECT_EQ(columns, 7381);
             EXPECT_EQ(iv["ranks"].size(), static_cast<std::size_t>(ranks));
         }
@@ -162,6 +164,8 @@ TEST(SphCli, WaterColumnFrontMatchesExperiments) {
     // for T in [1, 2.5] with the default (fixed, no-slip-like) walls.
     const auto j = run_sph("column", 1, "--setup column --end-time 0.33 --interval 1000");
     ASSERT_FALSE(j.is_null());
+    for (const auto &iv : j["intervals"])
+        EXPECT_EQ(iv["ranks"][0]["escaped"], 0) << "fluid outside the tank";
     int compared = 0;
     for (const auto &[file, t_col, z_col] :
          {std::tuple{"martin_moyce_n2_2.csv", 1, 2}, std::tuple{"koshizuka_oka_1996.csv", 0, 1}})

@@ -3,6 +3,8 @@
 // particles within 3h that interact with it, sorted by particle id so that sums run in the same
 // order whatever grid, thread count or rank layout found them (trajectories then agree to the
 // last bit across grids).
+#include <concepts>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -14,6 +16,20 @@ struct NeighbourList {
 
     std::size_t particles() const { return offsets.empty() ? 0 : offsets.size() - 1; }
     std::size_t interactions() const { return index.size(); }
+
+    template <class F> void for_each_neighbour(std::size_t i, F &&f) const {
+        for (std::uint32_t e = offsets[i]; e < offsets[i + 1]; ++e)
+            f(index[e]);
+    }
+};
+
+// What the physics needs from a neighbour search: how many owned particles, and their
+// neighbours one particle at a time. A stored list satisfies it; so can a scheme that walks
+// sorted cells on the fly and stores no pairs.
+template <class N>
+concept Neighbourhood = requires(const N &n, std::size_t i, void (*f)(std::uint32_t)) {
+    { n.particles() } -> std::convertible_to<std::size_t>;
+    n.for_each_neighbour(i, f);
 };
 
 } // namespace sphperf::sph

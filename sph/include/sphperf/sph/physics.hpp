@@ -5,6 +5,9 @@
 #include "sphperf/sph/neighbours.hpp"
 #include "sphperf/sph/particles.hpp"
 
+#include <cmath>
+#include <vector>
+
 namespace sphperf::sph {
 
 // Contribution of neighbour j to particle i (Monaghan 1994), with grad W_ij = dW/dr (r_i - r_j)/r:
@@ -43,15 +46,71 @@ inline Acceleration momentum_term(const PairInput &in, const QuinticKernel &k, d
 // Pressure from density for every particle (Tait equation).
 void equation_of_state(Particles &p, const Physics &phys);
 
-// Accelerations and density rates of the owned particles from their neighbour lists. Wall
-// particles of the fixed boundary get a density rate only (they do not move).
+// Runs `term(sum, pair)` over the neighbours of every owned particle, then `finish(i, sum)`.
+template <class Sum, Neighbourhood N, class Term, class Finish>
+void for_each_neighbourhood(const Particles &p, const N &nb, Term &&term, Finish &&finish) {
+    const std::size_t owned = nb.particles();
+#pragma omp parallel for schedule(static)
+    for (std::size_t i = 0; i < owned; ++i) {
+        Sum sum{};
+        nb.for_each_neighbour(i, [&](std::uint32_t j) {
+            const double dx = p.x[i] - p.x[j], dy = p.y[i] - p.y[j];
+            const double r = std::sqrt(dx * dx + dy * dy);
+            if (r == 0) // a fluid particle on a mirror line and its own image: no direction
+                return;
+            term(sum, PairInput{dx, dy, r, p.vx[i] - p.vx[j], p.vy[i] - p.vy[j], p.rho[i], p.rho[j],
+                                p.p[i], p.p[j], p.mass[j]});
+        });
+        finish(i, sum);
+    }
+}
+
 // Density rates of the owned particles (fluid and fixed wall particles).
-void continuity(Particles &p, const NeighbourList &nl, const Physics &phys);
+template <Neighbourhood N> void continuity(Particles &p, const N &nb, const Physics &phys) {
+    const QuinticKernel k = phys.kernel();
+    for_each_neighbourhood<double>(
+        p, nb, [&](double &sum, const PairInput &in) { sum += continuity_term(in, k); },
+        [&](std::size_t i, double sum) { p.drho[i] = sum; });
+}
 
 // Accelerations of the owned fluid particles (wall particles do not move).
-void momentum(Particles &p, const NeighbourList &nl, const Physics &phys);
+template <Neighbourhood N> void momentum(Particles &p, const N &nb, const Physics &phys) {
+    const QuinticKernel k = phys.kernel();
+    for_each_neighbourhood<Acceleration>(
+        p, nb,
+        [&](Acceleration &sum, const PairInput &in) {
+            const Acceleration a = momentum_term(in, k, phys.c0, phys.alpha);
+            sum.ax += a.ax;
+            sum.ay += a.ay;
+        },
+        [&](std::size_t i, const Acceleration &sum) {
+            const bool fluid = p.kind[i] == Kind::fluid;
+            p.ax[i] = fluid ? sum.ax : 0.0;
+            p.ay[i] = fluid ? sum.ay - phys.gravity : 0.0;
+        });
+}
 
-// Shepard filter: rho_i = sum_j m_j W_ij / sum_j (m_j / rho_j) W_ij over i and its neighbours.
-void shepard_filter(Particles &p, const NeighbourList &nl, const Physics &phys);
+// Shepard filter: rho_i = sum_j m_j W_ij / sum_j (m_j / rho_j) W_ij over i and its neighbours;
+// fluid densities only (wall densities follow the continuity equation).
+template <Neighbourhood N> void shepard_filter(Particles &p, const N &nb, const Physics &phys) {
+    const QuinticKernel k = phys.kernel();
+    const std::size_t owned = nb.particles();
+    std::vector<double> filtered(owned);
+    const double w0 = k.value(0.0);
+#pragma omp parallel for schedule(static)
+    for (std::size_t i = 0; i < owned; ++i) {
+        double num = p.mass[i] * w0, den = p.mass[i] / p.rho[i] * w0;
+        nb.for_each_neighbour(i, [&](std::uint32_t j) {
+            const double dx = p.x[i] - p.x[j], dy = p.y[i] - p.y[j];
+            const double w = k.value(std::sqrt(dx * dx + dy * dy));
+            num += p.mass[j] * w;
+            den += p.mass[j] / p.rho[j] * w;
+        });
+        filtered[i] = num / den;
+    }
+    for (std::size_t i = 0; i < owned; ++i)
+        if (p.kind[i] == Kind::fluid)
+            p.rho[i] = filtered[i];
+}
 
 } // namespace sphperf::sph

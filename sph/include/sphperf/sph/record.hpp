@@ -21,9 +21,11 @@ struct RankInterval {
     double migrated = 0;     // particles that left this rank, total over the interval
     double cell_moves = 0;   // particles (re)filed in a cell
     double idle_s = 0;       // time with no fluid particle to work on
+    double escaped = 0;      // fluid particles outside the tank (through a wall or the floor)
+    double reflected = 0;    // mirror boundary: particles reflected back at a wall, total
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
 
-    static constexpr std::size_t fields = 10 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 12 + static_cast<std::size_t>(Phase::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

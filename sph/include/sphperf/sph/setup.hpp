@@ -27,8 +27,12 @@ int wall_layers(const Physics &phys);
 std::size_t add_mirrors(Particles &p, const Geometry &geo, const Physics &phys,
                         std::int64_t first_mirror_id, std::vector<std::uint32_t> &sources);
 
+// Mirror boundary: a fluid particle that crossed a wall or the floor during the drift is
+// reflected back (position and normal velocity), the free-slip condition applied to the
+// particle itself. Returns how many were reflected (reported, never silent).
+std::size_t reflect_at_walls(Particles &p, const Geometry &geo);
+
 // After the sources' density changed: mirrors appended from index `first` take it again.
-void refresh_mirrors(Particles &p, std::size_t first, const std::vector<std::uint32_t> &sources,
-                     const Physics &phys);
+void refresh_mirrors(Particles &p, std::size_t first, const std::vector<std::uint32_t> &sources);
 
 } // namespace sphperf::sph

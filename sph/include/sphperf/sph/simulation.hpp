@@ -105,15 +105,16 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
         ScopedPhase t(step_timers_, Phase::pairs);
         last_counts_ = find_neighbours(grid_, p_, window_, phys_.cell_size(), nl_);
     }
-    {
-        ScopedPhase t(step_timers_, Phase::comp);
-        continuity(p_, nl_, phys_);
-        if (!advance_density_)
-            return equation_of_state(p_, phys_), momentum(p_, nl_, phys_);
-        advance_density(p_, cfg_.dt);
-        refresh_mirrors(p_, p_.owned(), mirror_sources_, phys_);
-    }
-    {
+    // Density advances with the half-step velocities (leapfrog for the acoustic pair), then the
+    // copies of it held by mirrors and ghosts follow, then pressure and momentum use it. The
+    // initial evaluation keeps the density as set up.
+    if (advance_density_) {
+        {
+            ScopedPhase t(step_timers_, Phase::comp);
+            continuity(p_, nl_, phys_);
+            advance_density(p_, cfg_.dt);
+            refresh_mirrors(p_, p_.owned(), mirror_sources_);
+        }
         ScopedPhase t(step_timers_, Phase::comm);
         dom_.refresh_ghost_density(p_);
     }
@@ -127,6 +128,10 @@ template <CellGrid Grid> void Simulation<Grid>::step() {
         ScopedPhase t(step_timers_, Phase::integrate);
         half_kick(p_, cfg_.dt);
         drift(p_, cfg_.dt);
+    }
+    if (cfg_.boundary == BoundaryKind::mirror) {
+        ScopedPhase t(step_timers_, Phase::boundary);
+        acc_.reflected += static_cast<double>(reflect_at_walls(p_, geo_));
     }
     {
         ScopedPhase t(step_timers_, Phase::grid);
@@ -160,7 +165,12 @@ template <CellGrid Grid> void Simulation<Grid>::sample_physics(double time) {
 
 template <CellGrid Grid> void Simulation<Grid>::check_conservation(std::int64_t step) const {
     const long long fluid = dom_.sum(static_cast<long long>(p_.fluid()));
-    if (fluid == initial_fluid_)
+    double mass = 0;
+    for (std::size_t i = 0; i < p_.fluid(); ++i)
+        mass += p_.mass[i];
+    mass = dom_.sum(mass);
+    const double expected_mass = static_cast<double>(initial_fluid_) * phys_.particle_mass();
+    if (fluid == initial_fluid_ && std::abs(mass - expected_mass) <= 1e-9 * expected_mass)
         return;
     // Name the ranks whose holdings do not match what their migrations say they should hold.
     const std::vector<double> mine{
@@ -175,14 +185,18 @@ template <CellGrid Grid> void Simulation<Grid>::check_conservation(std::int64_t 
             culprits += (culprits.empty() ? "" : ", ") + std::to_string(r);
     }
     throw std::runtime_error(
-        "step " + std::to_string(step) + ": fluid particle count changed from " +
-        std::to_string(initial_fluid_) + " to " + std::to_string(fluid) +
+        "step " + std::to_string(step) + ": fluid particles " + std::to_string(initial_fluid_) +
+        " -> " + std::to_string(fluid) + ", mass " + std::to_string(expected_mass) + " -> " +
+        std::to_string(mass) + " kg" +
         (culprits.empty() ? std::string(" (no rank's migrations explain it)")
                           : " on rank(s) " + culprits + " (holdings differ from migrations)"));
 }
 
 template <CellGrid Grid> void Simulation<Grid>::close_interval(std::int64_t step) {
     acc_.field = static_cast<double>(p_.fluid());
+    for (std::size_t i = 0; i < p_.fluid(); ++i)
+        if (p_.x[i] < 0 || p_.x[i] > geo_.tank_length || p_.y[i] < 0)
+            acc_.escaped += 1;
     const double n = std::max(acc_.steps, 1.0);
     RankInterval out = acc_;
     for (double *v :
