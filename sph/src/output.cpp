@@ -6,37 +6,24 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <bit>
 #include <cstdio>
 #include <fstream>
 #include <numeric>
 
 namespace sphperf::sph {
 
+// RankInterval is doubles only, so it crosses ranks as an array of them (record.hpp checks the
+// size): no field list to keep in step by hand.
 std::array<double, RankInterval::fields> RankInterval::pack() const {
-    std::array<double, fields> v{steps,        field,    virtual_, ghost,      pairs,
-                                 interactions, exported, migrated, cell_moves, idle_s};
-    v[10] = escaped;
-    v[11] = reflected;
-    std::copy(timers.begin(), timers.end(), v.begin() + 12);
-    return v;
+    return std::bit_cast<std::array<double, fields>>(*this);
 }
 
 RankInterval RankInterval::unpack(const double *v) {
-    RankInterval r;
-    r.steps = v[0];
-    r.field = v[1];
-    r.virtual_ = v[2];
-    r.ghost = v[3];
-    r.pairs = v[4];
-    r.interactions = v[5];
-    r.exported = v[6];
-    r.migrated = v[7];
-    r.cell_moves = v[8];
-    r.idle_s = v[9];
-    r.escaped = v[10];
-    r.reflected = v[11];
-    std::copy_n(v + 12, r.timers.size(), r.timers.begin());
-    return r;
+    std::array<double, fields> a{};
+    std::copy_n(v, fields, a.begin());
+    return std::bit_cast<RankInterval>(a);
 }
 
 Progress::Progress(bool enabled, std::int64_t steps, double dt)

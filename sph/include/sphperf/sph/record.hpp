@@ -30,6 +30,9 @@ struct RankInterval {
     static RankInterval unpack(const double *v);
 };
 
+static_assert(sizeof(RankInterval) == RankInterval::fields * sizeof(double),
+              "RankInterval must hold exactly `fields` doubles: update `fields`");
+
 struct IntervalRecord {
     std::int64_t step = 0;
     double time_s = 0;
