@@ -13,6 +13,7 @@ packages=(
     nlohmann-json3-dev
     libgtest-dev
     libcli11-dev
+    libgsl-dev
     python3-matplotlib
 )
 

@@ -1,8 +1,10 @@
 #include "sphperf/model/profile.hpp"
 
 #include "sphperf/cli.hpp"
+#include "sphperf/model/comm_model.hpp"
 
 #include <fstream>
+#include <map>
 
 namespace sphperf::model {
 
@@ -39,6 +41,37 @@ nlohmann::json coretype_entry(const nlohmann::json &dgemm) {
             {"coretype_env", dgemm.value("openblas_coretype_env", nlohmann::json())},
             {"best_gflops", dgemm.value("best_gflops", 0.0)},
             {"results", dgemm.value("results", nlohmann::json::array())}};
+}
+// Both Hockney pieces and the breakpoint of every measured pair, with the processing units
+// its ranks ran on, and per locality class the slowest pair (at a 16 KiB message, a typical
+// ghost exchange): the thesis' "maximum average" choice, here per piece.
+nlohmann::json hockney_section(const nlohmann::json &pingpong) {
+    std::map<int, int> pu_of_rank;
+    for (const auto &r : pingpong.value("rank_placement", nlohmann::json::array()))
+        if (r.contains("rank") && r.contains("last_cpu") && r.value("bound_to_one_core", false))
+            pu_of_rank[r["rank"].get<int>()] = r["last_cpu"].get<int>();
+    nlohmann::json pairs = nlohmann::json::array(), classes = nlohmann::json::object();
+    std::map<std::string, double> slowest;
+    for (const auto &pr : pingpong.value("pairs", nlohmann::json::array())) {
+        if (!pr.contains("pieces"))
+            continue;
+        nlohmann::json e = pr;
+        e.erase("samples");
+        const auto ranks = pr.value("ranks", nlohmann::json::array());
+        if (ranks.size() == 2 && pu_of_rank.count(ranks[0].get<int>()) &&
+            pu_of_rank.count(ranks[1].get<int>()))
+            e["pus"] = {pu_of_rank[ranks[0].get<int>()], pu_of_rank[ranks[1].get<int>()]};
+        const PiecewiseFit fit = piecewise_from_json(e, "pingpong pair");
+        const std::string loc = pr.value("locality", "unknown");
+        const double t = fit.predict(16384.0);
+        if (!slowest.count(loc) || t > slowest[loc]) {
+            slowest[loc] = t;
+            classes[loc] = to_json(fit);
+            classes[loc]["from_ranks"] = ranks;
+        }
+        pairs.push_back(std::move(e));
+    }
+    return {{"pairs", pairs}, {"classes", classes}};
 }
 } // namespace
 
@@ -83,6 +116,7 @@ nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream
     p["alpha_matrix_s"] = pingpong.at("alpha_matrix_s");
     p["beta_matrix_s_per_byte"] = pingpong.at("beta_matrix_s_per_byte");
     p["comm_classes"] = pingpong.value("classes", nlohmann::json::object());
+    p["hockney"] = hockney_section(pingpong);
     p["timestamps"] = {{"stream", stream.value("timestamp", "")},
                        {"dgemm", dgemm.value("timestamp", "")},
                        {"pingpong", pingpong.value("timestamp", "")},

@@ -48,22 +48,67 @@ CellWindow Domain::window(int cell_rows) const {
     return {slab_.cell_size, slab_.begin - 1, slab_.end + 1, -1, cell_rows};
 }
 
+namespace {
+// A phase scope that times nothing when no timers are attached.
+class MaybePhase {
+public:
+    MaybePhase(PhaseTimers *t, Phase p) {
+        if (t)
+            scope_.emplace(*t, p);
+    }
+
+private:
+    std::optional<ScopedPhase> scope_;
+};
+} // namespace
+
+void Domain::wait_for_neighbours(int tag) {
+    // A zero-byte handshake each way: it returns once both neighbours have arrived, so the time
+    // spent here is the wait for the slower one, and the transfers after it are timed alone.
+    MaybePhase t(timers_, Phase::wait);
+    MPI_Sendrecv(nullptr, 0, MPI_BYTE, east_, tag, nullptr, 0, MPI_BYTE, west_, tag, comm_,
+                 MPI_STATUS_IGNORE);
+    MPI_Sendrecv(nullptr, 0, MPI_BYTE, west_, tag, nullptr, 0, MPI_BYTE, east_, tag, comm_,
+                 MPI_STATUS_IGNORE);
+}
+
+void Domain::sendrecv(const void *out, int out_bytes, int dest, void *in, int in_bytes, int src,
+                      int tag) {
+    {
+        MaybePhase t(timers_, Phase::comm);
+        MPI_Sendrecv(out, out_bytes, MPI_BYTE, dest, tag, in, in_bytes, MPI_BYTE, src, tag, comm_,
+                     MPI_STATUS_IGNORE);
+    }
+    if (dest != MPI_PROC_NULL) {
+        tally_.messages += 1;
+        tally_.bytes += out_bytes;
+    }
+    // Both directions travel at once: the call lasts as long as the longer transfer.
+    const MessageCost &to = dest == east_ ? cost_east_ : cost_west_;
+    const MessageCost &from = src == east_ ? cost_east_ : cost_west_;
+    double t = 0;
+    if (dest != MPI_PROC_NULL && to)
+        t = to(out_bytes);
+    if (src != MPI_PROC_NULL && from)
+        t = std::max(t, from(in_bytes));
+    tally_.predicted_s += t;
+}
+
 template <class T>
 Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vector<T> &to_east,
-                                  int tag) const {
+                                  int tag) {
     static_assert(std::is_trivially_copyable_v<T>);
     // Two shifts (eastward, then westward), counts first, values as bytes. Every rank sends
     // and receives at once, so no chain forms across ranks; MPI_PROC_NULL makes the tank
     // edges no-ops.
+    wait_for_neighbours(tag);
     Received<T> in;
     auto one_way = [&](int dest, int src, const std::vector<T> &out, std::vector<T> &into) {
         int n_out = static_cast<int>(out.size()), n_in = 0;
-        MPI_Sendrecv(&n_out, 1, MPI_INT, dest, tag, &n_in, 1, MPI_INT, src, tag, comm_,
-                     MPI_STATUS_IGNORE);
+        sendrecv(&n_out, sizeof n_out, dest, &n_in, sizeof n_in, src, tag);
         into.resize(static_cast<std::size_t>(src == MPI_PROC_NULL ? 0 : n_in));
-        MPI_Sendrecv(out.data(), n_out * static_cast<int>(sizeof(T)), MPI_BYTE, dest, tag,
-                     into.data(), static_cast<int>(into.size() * sizeof(T)), MPI_BYTE, src, tag,
-                     comm_, MPI_STATUS_IGNORE);
+        sendrecv(out.data(), n_out * static_cast<int>(sizeof(T)), dest, into.data(),
+                 static_cast<int>(into.size() * sizeof(T)), src, tag);
     };
     one_way(east_, west_, to_east, in.from_west);
     one_way(west_, east_, to_west, in.from_east);
@@ -73,6 +118,7 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
 ExchangeCounts Domain::migrate(Particles &p, const std::function<void(std::int64_t)> &forget) {
     if (slab_.ranks == 1)
         return {};
+    std::optional<MaybePhase> pack(std::in_place, timers_, Phase::pack);
     std::vector<ParticleRecord> to_west, to_east;
     for (std::size_t i = p.owned(); i-- > 0;) {
         const int owner = slab_.owner_of(p.x[i]);
@@ -89,7 +135,9 @@ ExchangeCounts Domain::migrate(Particles &p, const std::function<void(std::int64
     ExchangeCounts c{to_west.size() + to_east.size(), 0};
     sent_west_ += static_cast<long long>(to_west.size());
     sent_east_ += static_cast<long long>(to_east.size());
+    pack.reset();
     const auto in = shift(to_west, to_east, tag_migrate);
+    pack.emplace(timers_, Phase::pack);
     recv_west_ += static_cast<long long>(in.from_west.size());
     recv_east_ += static_cast<long long>(in.from_east.size());
     for (const auto *part : {&in.from_west, &in.from_east})
@@ -102,6 +150,7 @@ ExchangeCounts Domain::migrate(Particles &p, const std::function<void(std::int64
 ExchangeCounts Domain::exchange_ghosts(Particles &p) {
     if (slab_.ranks == 1)
         return {};
+    std::optional<MaybePhase> pack(std::in_place, timers_, Phase::pack);
     std::vector<ParticleRecord> to_west, to_east;
     export_west_.clear();
     export_east_.clear();
@@ -118,7 +167,9 @@ ExchangeCounts Domain::exchange_ghosts(Particles &p) {
             export_east_.push_back(static_cast<std::uint32_t>(i));
         }
     }
+    pack.reset();
     const auto in = shift(to_west, to_east, tag_ghost);
+    pack.emplace(timers_, Phase::pack);
     ghosts_begin_ = p.size();
     ghosts_from_west_ = in.from_west.size();
     for (const auto *part : {&in.from_west, &in.from_east})
@@ -130,12 +181,15 @@ ExchangeCounts Domain::exchange_ghosts(Particles &p) {
 void Domain::refresh_ghost_density(Particles &p) {
     if (slab_.ranks == 1)
         return;
+    std::optional<MaybePhase> pack(std::in_place, timers_, Phase::pack);
     std::vector<double> to_west, to_east;
     for (auto i : export_west_)
         to_west.push_back(p.rho[i]);
     for (auto i : export_east_)
         to_east.push_back(p.rho[i]);
+    pack.reset();
     const auto in = shift(to_west, to_east, tag_density);
+    pack.emplace(timers_, Phase::pack);
     std::copy(in.from_west.begin(), in.from_west.end(),
               p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_));
     std::copy(in.from_east.begin(), in.from_east.end(),
@@ -172,6 +226,11 @@ std::vector<double> Domain::gather(const std::vector<double> &v) const {
 }
 void Domain::barrier() const {
     MPI_Barrier(comm_);
+}
+std::vector<int> Domain::gather_int(int v) const {
+    std::vector<int> out(static_cast<std::size_t>(slab_.ranks));
+    MPI_Allgather(&v, 1, MPI_INT, out.data(), 1, MPI_INT, comm_);
+    return out;
 }
 
 } // namespace sphperf::sph

@@ -1,5 +1,7 @@
 // sph: the SPH proxy application (2D weakly compressible dam break), MPI slabs + OpenMP.
 #include "sphperf/cli.hpp"
+#include "sphperf/model/comm_model.hpp"
+#include "sphperf/model/profile.hpp"
 #include "sphperf/report.hpp"
 #include "sphperf/sph/config.hpp"
 #include "sphperf/sph/simulation.hpp"
@@ -10,6 +12,7 @@
 
 #include <cstdio>
 #include <iostream>
+#include <memory>
 
 namespace {
 
@@ -35,6 +38,10 @@ Config parse(int argc, char **argv) {
     app.add_option("--threads", cfg.threads, "OpenMP threads per rank (default OMP_NUM_THREADS)");
     app.add_option("--interval", cfg.interval, "Steps per report interval");
     app.add_option("--report", cfg.report, "Write the JSON report to this file");
+    app.add_option("--machine", cfg.machine,
+                   "machine.json: record per interval and rank the Hockney prediction of the "
+                   "messages actually sent (comm_predict_s)")
+        ->check(CLI::ExistingFile);
     app.add_option("--vtk", cfg.vtk_dir, "Write ParaView snapshots (.vtu + sph.pvd) here");
     app.add_option("--vtk-every", cfg.vtk_every, "Steps between snapshots");
     app.add_option("--column-width", cfg.column_width, "Width a of the column setup, metres");
@@ -84,6 +91,28 @@ void check_outputs(const Config &cfg, int rank) {
     }
 }
 
+// The first processing unit this rank is bound to, or -1 when it may run anywhere.
+int bound_pu() {
+    const Topology topo;
+    const CpuSet set = topo.this_process_binding();
+    return set.weight() > 0 && set.weight() < topo.pus() ? set.first() : -1;
+}
+
+// Each message to a neighbour is costed with the link between the two ranks' units.
+void attach_message_costs(Domain &domain, const std::filesystem::path &machine,
+                          const std::vector<int> &pus) {
+    auto comm = std::make_shared<model::CommModel>(
+        model::CommModel::from_profile(model::load_report(machine, "machine")));
+    const int me = pus[static_cast<std::size_t>(domain.rank())];
+    auto cost_to = [&](int neighbour) -> MessageCost {
+        if (neighbour == MPI_PROC_NULL)
+            return {};
+        const int other = pus[static_cast<std::size_t>(neighbour)];
+        return [comm, me, other](double bytes) { return comm->seconds(me, other, bytes); };
+    };
+    domain.attach_cost(cost_to(domain.west()), cost_to(domain.east()));
+}
+
 void print_summary(const nlohmann::json &r) {
     const auto &c = r["config"];
     std::printf("sph: %s, grid %s, boundary %s, scale %g, %lld fluid particles, %lld steps, "
@@ -123,9 +152,12 @@ int run(int argc, char **argv, int rank, int ranks) {
                          omp_get_max_threads(), bound);
     }
     Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
-    const RunRecord rec = cfg.grid == GridKind::list
-                              ? Simulation<CellList>(cfg, geo, domain).run()
-                              : Simulation<CellTable>(cfg, geo, domain).run();
+    const std::vector<int> pus = domain.gather_int(bound_pu());
+    if (cfg.machine)
+        attach_message_costs(domain, *cfg.machine, pus);
+    RunRecord rec = cfg.grid == GridKind::list ? Simulation<CellList>(cfg, geo, domain).run()
+                                               : Simulation<CellTable>(cfg, geo, domain).run();
+    rec.placement_pus = pus;
     if (rank == 0) {
         const Topology topo;
         const nlohmann::json report = build_report(rec, topo);

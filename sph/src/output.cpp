@@ -140,7 +140,8 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                    {"c0", c.physics.c0},
                    {"gamma", c.physics.gamma},
                    {"alpha", c.physics.alpha},
-                   {"shepard_every", c.physics.shepard_every}};
+                   {"shepard_every", c.physics.shepard_every},
+                   {"fluid_particles", run.geometry.fluid_particles()}};
     j["particles"] = {{"field", run.fluid_particles},
                       {"virtual", run.mean_virtual},
                       {"wall", run.wall_particles}};
@@ -151,6 +152,11 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     j["neighbour_interactions_per_s"] = run.wall_s > 0 ? run.interactions_total / run.wall_s : 0.0;
     j["steps_per_s"] = run.wall_s > 0 ? steps / run.wall_s : 0.0;
     j["peak_rss_bytes"] = run.peak_rss_bytes;
+    j["record_bytes"] = sizeof(ParticleRecord);
+    j["placement_pus"] = run.placement_pus;
+    j["machine"] = c.machine ? nlohmann::json(c.machine->string()) : nlohmann::json();
+    j["initial_columns"] = run.initial_columns;
+    j["wall_columns"] = run.wall_columns;
 
     nlohmann::json totals;
     for (std::size_t k = 0; k < phase_keys.size(); ++k) {
@@ -170,7 +176,10 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"pairs", r.pairs},           {"interactions", r.interactions},
                               {"exported", r.exported},     {"migrated", r.migrated},
                               {"cell_moves", r.cell_moves}, {"idle_s", r.idle_s},
-                              {"escaped", r.escaped},       {"reflected", r.reflected}};
+                              {"escaped", r.escaped},       {"reflected", r.reflected},
+                              {"field_mean", r.field_mean}, {"messages", r.messages},
+                              {"message_bytes", r.message_bytes},
+                              {"comm_predict_s", r.comm_predict_s}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)
                 jr["timers"][phase_keys[k]] = r.timers[k];
             jiv["ranks"].push_back(jr);

@@ -74,6 +74,7 @@ struct Config {
     int threads = 0; // 0: OMP_NUM_THREADS / runtime default
     int interval = 1000;
     std::optional<std::filesystem::path> report;
+    std::optional<std::filesystem::path> machine; // machine.json: predict each message inline
     std::optional<std::filesystem::path> vtk_dir;
     int vtk_every = 0;
     bool quiet = false;

@@ -5,10 +5,13 @@
 // exchanges nothing.
 #include "sphperf/sph/grid.hpp"
 #include "sphperf/sph/particles.hpp"
+#include "sphperf/sph/timers.hpp"
 
 #include <mpi.h>
 
 #include <functional>
+#include <optional>
+#include <utility>
 #include <vector>
 
 namespace sphperf::sph {
@@ -33,9 +36,30 @@ struct ExchangeCounts {
     std::size_t sent = 0, received = 0;
 };
 
+// What this rank sent since the last take_tally(): messages, payload bytes, and the Hockney
+// prediction of their transfer (the thesis' T_COMM_PREDICT), when a cost model is attached.
+struct CommTally {
+    double messages = 0, bytes = 0, predicted_s = 0;
+};
+
+// One-way time of a message of `bytes` to or from a neighbour (west or east).
+using MessageCost = std::function<double(double bytes)>;
+
 class Domain {
 public:
     Domain(MPI_Comm comm, int columns, double cell_size);
+
+    // Where the exchanges' time goes: wait (for a slower neighbour), comm (the transfers), pack
+    // (selecting and copying particles). Without timers nothing is timed.
+    void attach_timers(PhaseTimers *timers) { timers_ = timers; }
+    // Costs messages to the west and east neighbours (sph --machine); empty: no prediction.
+    void attach_cost(MessageCost west, MessageCost east) {
+        cost_west_ = std::move(west);
+        cost_east_ = std::move(east);
+    }
+    CommTally take_tally() { return std::exchange(tally_, CommTally{}); }
+    int west() const { return west_; }
+    int east() const { return east_; }
 
     int rank() const { return slab_.rank; }
     int ranks() const { return slab_.ranks; }
@@ -60,6 +84,7 @@ public:
     void sum_to_root(std::vector<double> &v) const; // element-wise, result on rank 0
     std::vector<double> gather(const std::vector<double> &v) const; // concatenated on rank 0
     void barrier() const;
+    std::vector<int> gather_int(int v) const; // rank order, on every rank
 
     // Cumulative migration tallies, for naming the ranks when a particle goes missing.
     long long sent_east() const { return sent_east_; }
@@ -70,7 +95,14 @@ public:
 private:
     template <class T> struct Received { std::vector<T> from_west, from_east; };
     template <class T>
-    Received<T> shift(const std::vector<T> &to_west, const std::vector<T> &to_east, int tag) const;
+    Received<T> shift(const std::vector<T> &to_west, const std::vector<T> &to_east, int tag);
+    void wait_for_neighbours(int tag);
+    // One MPI_Sendrecv of raw bytes, timed as comm and tallied.
+    void sendrecv(const void *out, int out_bytes, int dest, void *in, int in_bytes, int src,
+                  int tag);
+    PhaseTimers *timers_ = nullptr;
+    MessageCost cost_west_, cost_east_;
+    CommTally tally_;
     std::vector<std::uint32_t> export_west_, export_east_; // indices sent by the last exchange
     std::size_t ghosts_begin_ = 0, ghosts_from_west_ = 0;  // where received ghosts landed
     MPI_Comm comm_;

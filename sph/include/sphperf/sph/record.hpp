@@ -23,9 +23,13 @@ struct RankInterval {
     double idle_s = 0;       // time with no fluid particle to work on
     double escaped = 0;      // fluid particles outside the tank (through a wall or the floor)
     double reflected = 0;    // mirror boundary: particles reflected back at a wall, total
+    double field_mean = 0;   // fluid particles owned, mean over the interval's steps
+    double messages = 0;     // MPI messages sent, total (counts and payloads)
+    double message_bytes = 0;  // their payload bytes, total
+    double comm_predict_s = 0; // Hockney prediction of those transfers (sph --machine), total
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
 
-    static constexpr std::size_t fields = 12 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 16 + static_cast<std::size_t>(Phase::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };
@@ -60,6 +64,9 @@ struct RunRecord {
     std::vector<double> peak_rss_bytes;                                             // per rank
     std::vector<std::array<double, static_cast<std::size_t>(Phase::count)>> timers; // per rank
     std::vector<double> idle_s;                                                     // per rank
+    std::vector<double> initial_columns; // fluid particles per cell column at t = 0
+    std::vector<double> wall_columns;    // fixed wall particles per cell column (static)
+    std::vector<int> placement_pus;      // first processing unit each rank is bound to, -1: none
 };
 
 } // namespace sphperf::sph

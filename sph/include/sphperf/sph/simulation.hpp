@@ -26,7 +26,12 @@ namespace sphperf::sph {
 template <CellGrid Grid> class Simulation {
 public:
     Simulation(const Config &cfg, const Geometry &geo, Domain &dom)
-        : cfg_(cfg), geo_(geo), phys_(cfg.physics), dom_(dom), window_(dom.window(geo.cell_rows)) {}
+        : cfg_(cfg), geo_(geo), phys_(cfg.physics), dom_(dom), window_(dom.window(geo.cell_rows)) {
+        dom_.attach_timers(&step_timers_);
+    }
+    ~Simulation() { dom_.attach_timers(nullptr); }
+    Simulation(const Simulation &) = delete;
+    Simulation &operator=(const Simulation &) = delete;
 
     // `observe(step, particles)`, if given, is called after every step (tests, probes).
     using Observer = std::function<void(std::int64_t, const Particles &)>;
@@ -42,6 +47,8 @@ private:
     void check_conservation(std::int64_t step) const;
     void sample_physics(double time);
     void write_snapshot(std::int64_t step);
+    // Particles of kind k (fluid or wall) per global cell column, summed on rank 0.
+    std::vector<double> column_histogram(bool fluid) const;
 
     Config cfg_;
     Geometry geo_;
@@ -90,8 +97,7 @@ template <CellGrid Grid> void Simulation<Grid>::build_transients() {
                             ? add_mirrors(p_, geo_, phys_, first_mirror_id_, mirror_sources_)
                             : 0;
     }
-    ScopedPhase t(step_timers_, Phase::comm);
-    const ExchangeCounts g = dom_.exchange_ghosts(p_);
+    const ExchangeCounts g = dom_.exchange_ghosts(p_); // times its own wait, comm and pack
     last_ghosts_ = g.received;
     last_exported_ = g.sent;
 }
@@ -115,7 +121,6 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
             advance_density(p_, cfg_.dt);
             refresh_mirrors(p_, p_.owned(), mirror_sources_);
         }
-        ScopedPhase t(step_timers_, Phase::comm);
         dom_.refresh_ghost_density(p_);
     }
     ScopedPhase t(step_timers_, Phase::comp);
@@ -138,10 +143,7 @@ template <CellGrid Grid> void Simulation<Grid>::step() {
         grid_.remove_transient(p_, window_);
         p_.drop_transient();
     }
-    {
-        ScopedPhase t(step_timers_, Phase::comm);
-        last_migrated_ = dom_.migrate(p_, [this](std::int64_t id) { grid_.forget(id); }).sent;
-    }
+    last_migrated_ = dom_.migrate(p_, [this](std::int64_t id) { grid_.forget(id); }).sent;
     build_transients();
     compute_forces();
     ScopedPhase t(step_timers_, Phase::integrate);
@@ -192,6 +194,18 @@ template <CellGrid Grid> void Simulation<Grid>::check_conservation(std::int64_t 
                           : " on rank(s) " + culprits + " (holdings differ from migrations)"));
 }
 
+template <CellGrid Grid>
+std::vector<double> Simulation<Grid>::column_histogram(bool fluid) const {
+    std::vector<double> columns(static_cast<std::size_t>(geo_.cell_columns), 0.0);
+    const std::size_t begin = fluid ? 0 : p_.fluid(), end = fluid ? p_.fluid() : p_.owned();
+    for (std::size_t i = begin; i < end; ++i)
+        columns[static_cast<std::size_t>(std::clamp(
+            static_cast<int>(std::floor(p_.x[i] / geo_.cell_size)), 0, geo_.cell_columns - 1))] +=
+            1;
+    dom_.sum_to_root(columns);
+    return columns;
+}
+
 template <CellGrid Grid> void Simulation<Grid>::close_interval(std::int64_t step) {
     acc_.field = static_cast<double>(p_.fluid());
     for (std::size_t i = 0; i < p_.fluid(); ++i)
@@ -199,17 +213,12 @@ template <CellGrid Grid> void Simulation<Grid>::close_interval(std::int64_t step
             acc_.escaped += 1;
     const double n = std::max(acc_.steps, 1.0);
     RankInterval out = acc_;
-    for (double *v :
-         {&out.virtual_, &out.ghost, &out.pairs, &out.interactions, &out.exported, &out.cell_moves})
+    for (double *v : {&out.virtual_, &out.ghost, &out.pairs, &out.interactions, &out.exported,
+                      &out.cell_moves, &out.field_mean})
         *v /= n;
     const auto packed = out.pack();
     const auto all = dom_.gather(std::vector<double>(packed.begin(), packed.end()));
-    std::vector<double> columns(static_cast<std::size_t>(geo_.cell_columns), 0.0);
-    for (std::size_t i = 0; i < p_.fluid(); ++i)
-        columns[static_cast<std::size_t>(std::clamp(
-            static_cast<int>(std::floor(p_.x[i] / geo_.cell_size)), 0, geo_.cell_columns - 1))] +=
-            1;
-    dom_.sum_to_root(columns);
+    std::vector<double> columns = column_histogram(true);
     if (dom_.rank() == 0) {
         IntervalRecord rec{step, static_cast<double>(step) * cfg_.dt, std::move(columns), {}};
         for (std::size_t r = 0; r < static_cast<std::size_t>(dom_.ranks()); ++r)
@@ -240,9 +249,12 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
     compute_forces(); // accelerations of the initial state; density stays as set up
     advance_density_ = true;
     sample_physics(0.0);
+    record_.initial_columns = column_histogram(true);
+    record_.wall_columns = column_histogram(false);
     if (cfg_.vtk_dir)
         write_snapshot(0);
     step_timers_.reset();
+    (void)dom_.take_tally();
 
     Progress progress(dom_.rank() == 0 && !cfg_.quiet, steps, cfg_.dt);
     dom_.barrier();
@@ -269,6 +281,11 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         acc_.exported += static_cast<double>(last_exported_);
         acc_.migrated += static_cast<double>(last_migrated_);
         acc_.cell_moves += static_cast<double>(grid_.last_moves());
+        acc_.field_mean += static_cast<double>(p_.fluid());
+        const CommTally tally = dom_.take_tally();
+        acc_.messages += tally.messages;
+        acc_.message_bytes += tally.bytes;
+        acc_.comm_predict_s += tally.predicted_s;
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)
             acc_.timers[k] += step_timers_.values()[k];
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)

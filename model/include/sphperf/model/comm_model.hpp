@@ -1,0 +1,50 @@
+#pragma once
+// Cost of one MPI message on this machine: the piecewise Hockney model of machine.json (both
+// pieces and the eager/rendezvous breakpoint, per measured rank pair and per locality class),
+// so a 17 KB ghost message is costed with the piece its size falls in.
+#include "sphperf/model/hockney.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+namespace sphperf::model {
+
+struct Link {
+    std::string locality;
+    int pu_a = -1, pu_b = -1; // processing units of the two ranks as ping-pong placed them
+    PiecewiseFit fit;
+};
+
+class CommModel {
+public:
+    // Reads the "hockney" section of a machine profile; throws UsageError naming the key.
+    static CommModel from_profile(const nlohmann::json &machine);
+
+    // The link between two processing units (OS indices, -1 when unbound): the measured pair on
+    // exactly those units when there is one, otherwise the slowest measured locality class, so
+    // an unbound or unmeasured placement is never costed optimistically.
+    const Link &link(int pu_a, int pu_b) const;
+    // One-way time of a message of `bytes` between two units.
+    double seconds(int pu_a, int pu_b, double bytes) const {
+        return link(pu_a, pu_b).fit.predict(bytes);
+    }
+    // One MPI_Sendrecv that sends `out` bytes and receives `in` bytes: both travel at once, the
+    // call lasts as long as the longer one. A missing side (tank edge) is passed as a negative.
+    double sendrecv_seconds(int pu, int pu_out, double out, int pu_in, double in) const;
+
+    const std::vector<Link> &pairs() const { return pairs_; }
+    const std::vector<Link> &classes() const { return classes_; }
+    const Link &slowest_class() const { return classes_[slowest_]; }
+
+private:
+    std::vector<Link> pairs_, classes_;
+    std::size_t slowest_ = 0;
+};
+
+// The JSON form of a fit (pieces + breakpoint), as machine.json stores it, and back.
+nlohmann::json to_json(const PiecewiseFit &fit);
+PiecewiseFit piecewise_from_json(const nlohmann::json &j, const std::string &where);
+
+} // namespace sphperf::model

@@ -1,0 +1,40 @@
+#pragma once
+// Ordinary least squares with covariance (GSL gsl_multifit_linear), the statistics the thesis
+// reports for its regressions (asymptotic standard errors, R^2, residual standard error), and
+// leave-one-group-out cross-validation for choosing the terms of a cost model by evidence.
+#include <nlohmann/json.hpp>
+
+#include <span>
+#include <string>
+#include <vector>
+
+namespace sphperf::model {
+
+struct LinearFit {
+    std::vector<std::string> terms; // names of the columns of X ("const" is the intercept)
+    std::vector<double> coef, se;   // coefficients and asymptotic standard errors
+    std::vector<std::vector<double>> cov;
+    double r2 = 0;  // 1 - SSR / SST (SST about the mean of y)
+    double rse = 0; // residual standard error sqrt(SSR / (n - p))
+    std::size_t points = 0;
+
+    double predict(std::span<const double> x) const;
+    double coefficient(const std::string &term) const; // 0 when the term is not in the fit
+    nlohmann::json to_json() const;
+    static LinearFit from_json(const nlohmann::json &j, const std::string &where);
+};
+
+// X is row-major, one row per observation, one column per term. Needs more rows than terms and
+// full column rank; throws std::invalid_argument otherwise.
+LinearFit fit_linear(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                     std::vector<std::string> terms);
+
+// The thesis' p(n) = m n + r.
+LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y);
+
+// Root mean square of the held-out residuals when each group (a calibration run) is left out in
+// turn and predicted by a fit to the others. With a single group, 5 interleaved folds instead.
+double cross_validate(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                      std::span<const int> groups);
+
+} // namespace sphperf::model

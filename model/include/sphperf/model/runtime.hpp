@@ -1,0 +1,72 @@
+#pragma once
+// The SPH runtime model: calibrate from SPH reports and a machine profile, predict the wall time
+// per rank count with its breakdown (compute, communication, wait, idle), and validate a
+// prediction against measured reports. Each function returns the JSON document it describes.
+#include "sphperf/model/comm_model.hpp"
+#include "sphperf/model/fit.hpp"
+#include "sphperf/model/sph_run.hpp"
+#include "sphperf/model/workload.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace sphperf::model {
+
+// Flops and bytes per neighbour interaction per step, counted from sph/physics.hpp, kernel.hpp
+// and grid_impl.hpp (model/README.md shows the count). Bytes assume no cache reuse, as the
+// thesis' 56 bytes per pair did: an upper bound on memory traffic.
+struct InteractionCost {
+    const char *stage;
+    double flops, bytes;
+};
+inline constexpr InteractionCost interaction_costs[] = {
+    {"neighbour search (2.86 candidates per interaction)", 14.3, 91.5},
+    {"continuity", 27.3, 44.0},
+    {"momentum", 43.8, 60.0},
+    {"shepard filter (every 30 steps)", 0.8, 1.5},
+};
+
+// The cost of one rank's step from its work counts; the terms the fit may use.
+inline constexpr const char *cost_terms[] = {"const", "interactions", "owned", "ghost",
+                                             "cell_moves"};
+struct RankWork {
+    double field = 0, walls = 0, ghost = 0, interactions = 0, cell_moves = 0;
+    double value(const std::string &term) const;
+};
+
+struct CalibrateOptions {
+    bool allow_other_host = false;
+};
+nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
+                         const std::vector<SphRun> &runs, const CalibrateOptions &opt);
+
+struct PredictRequest {
+    std::string setup = "dambreak", grid = "table";
+    double scale = 1, delta = 0.01, dt = 1e-4;
+    std::vector<int> ranks{1, 2, 4};
+    int threads = 1;
+    std::optional<std::int64_t> steps;
+    std::optional<double> end_time;
+    int interval = 100;
+    int cores = 0; // cores of the node (time-sharing above it); 0: from the model's machine
+};
+nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
+                       const PredictRequest &req);
+
+struct ValidateOptions {
+    std::optional<double> max_error; // fraction
+};
+// Returns the report; `exceeded` tells whether any total wall-time error passed max_error.
+nlohmann::json validate(const nlohmann::json &header, const std::vector<nlohmann::json> &predictions,
+                        const std::vector<SphRun> &measured, const ValidateOptions &opt,
+                        bool &exceeded);
+
+// Text tables for stdout.
+std::string calibration_table(const nlohmann::json &model);
+std::string prediction_table(const nlohmann::json &prediction);
+std::string validation_table(const nlohmann::json &validation);
+
+} // namespace sphperf::model

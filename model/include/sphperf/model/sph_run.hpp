@@ -1,0 +1,49 @@
+#pragma once
+// An SPH report read into typed structures (nlohmann from_json): a missing key, a wrong type,
+// a non-finite or negative figure is a UsageError naming the file and the key.
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace sphperf::model {
+
+// One rank over one report interval; counts are means per step, times totals over the interval.
+struct RankStats {
+    double steps = 0, field = 0, field_mean = 0, virtual_ = 0, ghost = 0, pairs = 0;
+    double interactions = 0, exported = 0, migrated = 0, cell_moves = 0, idle_s = 0;
+    double messages = 0, message_bytes = 0, comm_predict_s = 0;
+    std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
+
+    double timer(const std::string &key) const;
+    // Everything the rank computes locally per step (all phases but comm, wait and output).
+    double compute_s() const;
+};
+
+struct IntervalStats {
+    std::int64_t step = 0;
+    double time_s = 0;
+    std::vector<double> columns; // fluid particles per cell column at the interval's end
+    std::vector<RankStats> ranks;
+};
+
+struct RunConfig {
+    std::string setup, grid, boundary;
+    double scale = 1, delta = 0.01, dt = 1e-4, cell_size = 0, tank_length = 0;
+    std::int64_t steps = 0, fluid_particles = 0;
+    int ranks = 1, threads = 1, interval = 1, cell_columns = 0;
+};
+
+struct SphRun {
+    std::string path, host, git_commit;
+    RunConfig config;
+    double wall_s = 0, record_bytes = 0;
+    std::vector<IntervalStats> intervals;
+    std::vector<double> initial_columns, wall_columns, peak_rss_bytes;
+    std::vector<int> placement_pus;
+};
+
+SphRun load_sph_run(const std::filesystem::path &path);
+
+} // namespace sphperf::model

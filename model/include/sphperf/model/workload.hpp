@@ -1,0 +1,66 @@
+#pragma once
+// The workload side of the model: column histograms of field particles recorded over time (a
+// trace), carried to another scale or spacing by similarity, and re-cut into exactly the app's
+// slab decomposition to give every rank its field, wall, exported and ghost particles.
+#include "sphperf/model/sph_run.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+namespace sphperf::model {
+
+struct Trace {
+    std::string setup, source; // source: the calibration report it came from
+    double scale = 1, delta = 0.01, cell_size = 0, tank_length = 0;
+    std::vector<double> times_s;              // t = 0 first
+    std::vector<std::vector<double>> columns; // fluid particles per column at each time
+
+    double end_time() const { return times_s.empty() ? 0 : times_s.back(); }
+    nlohmann::json to_json() const;
+    static Trace from_json(const nlohmann::json &j, const std::string &where);
+};
+
+Trace trace_of(const SphRun &run);
+
+// What the model needs of a configuration it predicts, from the app's own geometry code.
+struct Target {
+    std::string setup, grid, boundary = "fixed";
+    double scale = 1, delta = 0.01, dt = 1e-4, cell_size = 0, tank_length = 0;
+    int columns = 0, ranks = 1, threads = 1;
+    double fluid_particles = 0;
+    std::vector<double> wall_columns, initial_columns;
+};
+// Throws UsageError for an unknown setup or more ranks than columns.
+Target make_target(const std::string &setup, const std::string &grid, double scale, double delta,
+                   double dt, int ranks, int threads);
+
+// Froude similarity: lengths scale with s, times with sqrt(s), so the target at time t looks
+// like the source at t sqrt(s_source / s_target). Spacing changes only the particle count.
+double source_time(double target_time, double source_scale, double target_scale);
+
+// The source histogram carried onto the target's columns: target column [a, b) takes the
+// source particles in [a, b) / (tank_t / tank_s) (fractions of columns by overlap), scaled so
+// the total equals the target's own field-particle count.
+std::vector<double> rescale_columns(const std::vector<double> &source, double source_cell,
+                                    double source_tank, double target_cell, double target_tank,
+                                    int target_columns, double target_total);
+
+// The trace's histogram at a source time, linear in time between records; throws UsageError
+// naming the simulated time needed when the trace ends before it.
+std::vector<double> histogram_at(const Trace &trace, double source_time);
+
+struct SlabLoad {
+    int begin = 0, end = 0; // columns owned
+    double field = 0;       // fluid particles owned
+    double walls = 0;       // wall particles owned (fixed boundary)
+    double exported = 0;    // particles of the edge columns facing a neighbour, both sides
+    double export_west = 0, export_east = 0;
+    double ghost = 0; // particles received from the neighbours' facing edge columns
+};
+// Exactly the app's decomposition (sph::Slab::first_column) and its edge-column export rule.
+std::vector<SlabLoad> recut(const std::vector<double> &fluid_columns,
+                            const std::vector<double> &wall_columns, int ranks);
+
+} // namespace sphperf::model

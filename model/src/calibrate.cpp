@@ -1,0 +1,329 @@
+// sphmodel calibrate: the thesis regressions, the compute-cost fit with terms chosen by
+// cross-validation, the roofline placement, the communication links and the workload traces.
+#include "sphperf/cli.hpp"
+#include "sphperf/model/runtime.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <set>
+
+namespace sphperf::model {
+
+double RankWork::value(const std::string &term) const {
+    if (term == "const")
+        return 1.0;
+    if (term == "interactions")
+        return interactions;
+    if (term == "owned")
+        return field + walls;
+    if (term == "ghost")
+        return ghost;
+    if (term == "cell_moves")
+        return cell_moves;
+    throw std::invalid_argument("unknown cost term " + term);
+}
+
+namespace {
+using nlohmann::json;
+
+struct Point {
+    RankWork work;
+    double pairs = 0, exported = 0, compute_s_per_step = 0;
+    int run = 0;
+};
+
+// Every (interval, rank) of a run with at least one step.
+std::vector<Point> points_of(const SphRun &run, int index) {
+    std::vector<Point> out;
+    for (const auto &iv : run.intervals)
+        for (const auto &r : iv.ranks) {
+            if (r.steps < 1)
+                continue;
+            Point p;
+            p.work = {r.field_mean, r.virtual_, r.ghost, r.interactions, r.cell_moves};
+            p.pairs = r.pairs;
+            p.exported = r.exported;
+            p.compute_s_per_step = r.compute_s() / r.steps;
+            p.run = index;
+            out.push_back(p);
+        }
+    return out;
+}
+
+json regression(const std::vector<Point> &pts, double Point::*y) {
+    std::vector<double> n, v;
+    for (const auto &p : pts)
+        if (p.work.field > 0) { // the linear law is for ranks holding field particles
+            n.push_back(p.work.field);
+            v.push_back(p.*y);
+        }
+    if (n.size() < 3)
+        throw UsageError("the calibration runs give " + std::to_string(n.size()) +
+                         " rank-intervals with field particles; the regressions need >= 3 "
+                         "(use more ranks or shorter --interval)");
+    return fit_line_mr(n, v).to_json();
+}
+
+// Cost fit for one grid and thread count: every subset of terms containing "interactions" is
+// scored by leave-one-run-out cross-validation; the best is kept, the scores are reported.
+json compute_fit(const std::vector<Point> &pts) {
+    const std::vector<std::string> optional{"const", "owned", "ghost", "cell_moves"};
+    json candidates = json::array();
+    double best_cv = std::numeric_limits<double>::infinity();
+    std::vector<std::string> best;
+    std::vector<double> y;
+    std::vector<int> groups;
+    for (const auto &p : pts) {
+        y.push_back(p.compute_s_per_step);
+        groups.push_back(p.run);
+    }
+    for (unsigned mask = 0; mask < (1u << optional.size()); ++mask) {
+        std::vector<std::string> terms{"interactions"};
+        for (std::size_t k = 0; k < optional.size(); ++k)
+            if (mask & (1u << k))
+                terms.push_back(optional[k]);
+        std::vector<std::vector<double>> X;
+        for (const auto &p : pts) {
+            X.emplace_back();
+            for (const auto &t : terms)
+                X.back().push_back(p.work.value(t));
+        }
+        try {
+            const double cv = cross_validate(X, y, groups);
+            candidates.push_back({{"terms", terms}, {"cv_rmse_s", cv}});
+            // A term must pay for itself: 1% better held-out error, else the smaller set wins.
+            if (cv < best_cv * (best.empty() || terms.size() < best.size() ? 1.0 : 0.99)) {
+                best_cv = cv;
+                best = terms;
+            }
+        } catch (const std::invalid_argument &) {
+            candidates.push_back({{"terms", terms}, {"cv_rmse_s", nullptr}, {"rank_deficient", true}});
+        }
+    }
+    if (best.empty())
+        throw UsageError("no cost model can be fitted to these calibration runs (too few "
+                         "distinct rank-intervals)");
+    std::vector<std::vector<double>> X;
+    for (const auto &p : pts) {
+        X.emplace_back();
+        for (const auto &t : best)
+            X.back().push_back(p.work.value(t));
+    }
+    const LinearFit f = fit_linear(X, y, best);
+    std::vector<double> residuals;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        residuals.push_back(f.predict(X[i]) - y[i]);
+    json j = f.to_json();
+    j["cv_rmse_s"] = best_cv;
+    j["candidates"] = candidates;
+    j["residuals_s"] = residuals;
+    j["runs"] = std::set<int>(groups.begin(), groups.end()).size();
+    return j;
+}
+
+// Cell moves per step from the work the model knows in advance (field, walls, ghosts).
+json cell_move_fit(const std::vector<Point> &pts) {
+    std::vector<std::vector<double>> X;
+    std::vector<double> y;
+    for (const auto &p : pts) {
+        X.push_back({p.work.field, p.work.walls, p.work.ghost, 1.0});
+        y.push_back(p.work.cell_moves);
+    }
+    try {
+        return fit_linear(X, y, {"field", "walls", "ghost", "const"}).to_json();
+    } catch (const std::invalid_argument &) {
+        X.clear();
+        for (const auto &p : pts)
+            X.push_back({p.work.field, p.work.walls, 1.0});
+        return fit_linear(X, y, {"field", "walls", "const"}).to_json();
+    }
+}
+
+json roofline(const json &machine, const std::vector<SphRun> &runs) {
+    double flops = 0, bytes = 0;
+    json stages = json::array();
+    for (const auto &c : interaction_costs) {
+        flops += c.flops;
+        bytes += c.bytes;
+        stages.push_back({{"stage", c.stage}, {"flops", c.flops}, {"bytes", c.bytes}});
+    }
+    const double peak = machine.at("peak_gflops").get<double>();
+    const double per_core = machine.value("peak_gflops_per_core", peak);
+    const double triad = machine.at("stream_triad_GBps").get<double>();
+    const double dgemm = machine.value("dgemm_gflops", 0.0);
+    const double intensity = flops / bytes;
+    json points = json::array();
+    for (const auto &r : runs) {
+        double interactions = 0, compute = 0;
+        for (const auto &iv : r.intervals)
+            for (const auto &rk : iv.ranks) {
+                interactions += rk.interactions * rk.steps;
+                compute = std::max(compute, 0.0);
+            }
+        // Achieved rates over the run's wall time on all its ranks.
+        const double gflops = r.wall_s > 0 ? interactions * flops / r.wall_s * 1e-9 : 0.0;
+        const double gbps = r.wall_s > 0 ? interactions * bytes / r.wall_s * 1e-9 : 0.0;
+        const int cores = std::min(r.config.ranks * r.config.threads,
+                                   machine.at("topology").value("cores", 1));
+        points.push_back({{"run", r.path},
+                          {"grid", r.config.grid},
+                          {"ranks", r.config.ranks},
+                          {"threads", r.config.threads},
+                          {"achieved_gflops", gflops},
+                          {"achieved_GBps", gbps},
+                          {"fraction_of_peak", gflops / std::min(peak, per_core * cores)},
+                          {"fraction_of_triad", gbps / triad}});
+    }
+    const double ridge = peak / triad;
+    double worst_fraction = 0;
+    for (const auto &p : points)
+        worst_fraction = std::max({worst_fraction, p["fraction_of_peak"].get<double>(),
+                                   p["fraction_of_triad"].get<double>()});
+    std::string verdict;
+    if (worst_fraction < 0.5)
+        verdict = "neither: the SPH kernel reaches at most " +
+                  std::to_string(static_cast<int>(std::round(100 * worst_fraction))) +
+                  "% of either ceiling; with its no-reuse intensity below the ridge it would be "
+                  "memory bound by the roofline, but its working set stays in cache and its "
+                  "time goes to instruction latency (branches, sqrt, gathers)";
+    else
+        verdict = intensity < ridge ? "memory bound" : "compute bound";
+    return {{"flops_per_interaction", flops},
+            {"bytes_per_interaction", bytes},
+            {"operational_intensity_flop_per_byte", intensity},
+            {"thesis_flops_per_pair", 89},
+            {"thesis_bytes_per_pair", 56},
+            {"stages", stages},
+            {"ceilings",
+             {{"peak_gflops", peak},
+              {"peak_gflops_per_core", per_core},
+              {"dgemm_gflops", dgemm},
+              {"stream_triad_GBps", triad},
+              {"ridge_flop_per_byte", ridge}}},
+            {"runs", points},
+            {"verdict", verdict}};
+}
+
+// Peak RSS per rank = fixed + bytes per stored particle x particles + bytes per interaction x
+// interactions, the last two counted from our data structures (model/README.md), the fixed part
+// (MPI, OpenMP and libraries) the median residual of the calibration runs.
+constexpr double bytes_per_particle = 10 * 8 + 8 + 1 + 4 + 8 + 4; // SoA + id + kind + list/grid
+constexpr double bytes_per_interaction = 2 * 4 + 16;              // list + per-thread + sort
+json memory_model(const std::vector<SphRun> &runs) {
+    std::vector<double> fixed;
+    for (const auto &r : runs)
+        for (std::size_t k = 0; k < r.peak_rss_bytes.size(); ++k) {
+            double particles = 0, interactions = 0;
+            for (const auto &iv : r.intervals) {
+                const auto &rk = iv.ranks[k];
+                particles = std::max(particles, rk.field + rk.virtual_ + rk.ghost);
+                interactions = std::max(interactions, rk.interactions);
+            }
+            fixed.push_back(r.peak_rss_bytes[k] - bytes_per_particle * particles -
+                            bytes_per_interaction * interactions);
+        }
+    std::sort(fixed.begin(), fixed.end());
+    return {{"bytes_per_particle", bytes_per_particle},
+            {"bytes_per_interaction", bytes_per_interaction},
+            {"fixed_bytes", fixed.empty() ? 0.0 : fixed[fixed.size() / 2]}};
+}
+} // namespace
+
+json calibrate(const json &header, const json &machine, const std::vector<SphRun> &runs,
+               const CalibrateOptions &opt) {
+    if (runs.empty())
+        throw UsageError("calibrate needs at least one SPH report (--runs)");
+    const std::string host = machine.value("host", "");
+    for (const auto &r : runs)
+        if (r.host != host && !opt.allow_other_host)
+            throw UsageError("'" + r.path + "' was measured on host '" + r.host +
+                             "' but the machine profile is of '" + host +
+                             "' (pass --allow-other-host to mix them)");
+    const CommModel comm = CommModel::from_profile(machine); // checks the section
+    (void)comm;
+
+    std::vector<Point> all;
+    std::map<std::pair<std::string, int>, std::vector<Point>> by_grid_threads;
+    std::map<std::string, std::vector<Point>> by_grid;
+    json traces = json::object(), sources = json::array();
+    double record_bytes = 0;
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        const auto &r = runs[i];
+        const auto pts = points_of(r, static_cast<int>(i));
+        all.insert(all.end(), pts.begin(), pts.end());
+        auto &g = by_grid_threads[{r.config.grid, r.config.threads}];
+        g.insert(g.end(), pts.begin(), pts.end());
+        auto &gg = by_grid[r.config.grid];
+        gg.insert(gg.end(), pts.begin(), pts.end());
+        record_bytes = r.record_bytes;
+        // Per setup keep the trace reaching furthest in Froude-scaled time.
+        const Trace t = trace_of(r);
+        const std::string key = r.config.setup;
+        const double reach = t.end_time() / std::sqrt(t.scale);
+        if (!traces.contains(key) ||
+            traces[key]["end_time_s"].get<double>() / std::sqrt(traces[key]["scale"].get<double>()) <
+                reach) {
+            traces[key] = t.to_json();
+            traces[key]["end_time_s"] = t.end_time();
+        }
+        double cost = 0;
+        for (const auto &iv : r.intervals)
+            for (const auto &rk : iv.ranks)
+                cost += rk.compute_s();
+        sources.push_back({{"path", r.path},
+                           {"setup", r.config.setup},
+                           {"grid", r.config.grid},
+                           {"scale", r.config.scale},
+                           {"delta", r.config.delta},
+                           {"ranks", r.config.ranks},
+                           {"threads", r.config.threads},
+                           {"steps", r.config.steps},
+                           {"wall_s", r.wall_s},
+                           {"cpu_s", cost},
+                           {"git_commit", r.git_commit}});
+    }
+
+    json model = header;
+    model["machine"] = {{"host", host},
+                        {"cores", machine.at("topology").value("cores", 1)},
+                        {"peak_gflops", machine.at("peak_gflops")},
+                        {"stream_triad_GBps", machine.at("stream_triad_GBps")},
+                        {"hockney", machine.at("hockney")}};
+    model["calibration_runs"] = sources;
+    model["record_bytes"] = record_bytes;
+    model["regressions"] = {{"pairs", regression(all, &Point::pairs)},
+                            {"exports", regression(all, &Point::exported)},
+                            {"thesis",
+                             {{"pairs", {{"m", 19.451}, {"m_se", 0.4994}, {"r", -589.96}, {"r_se", 299.6}}},
+                              {"exports",
+                               {{"m", 0.112845}, {"m_se", 0.004522}, {"r", -4.02341}, {"r_se", 2.713}}}}}};
+    {
+        // Interactions (ordered pairs acting on an owned particle) drive the compute cost.
+        std::vector<Point> held;
+        for (const auto &p : all)
+            held.push_back(p);
+        for (auto &p : held)
+            p.pairs = p.work.interactions;
+        model["regressions"]["interactions"] = regression(held, &Point::pairs);
+    }
+    json compute = json::array();
+    for (const auto &[key, pts] : by_grid_threads) {
+        json c = compute_fit(pts);
+        c["grid"] = key.first;
+        c["threads"] = key.second;
+        compute.push_back(c);
+    }
+    model["compute"] = compute;
+    json moves = json::object();
+    for (const auto &[grid, pts] : by_grid)
+        moves[grid] = cell_move_fit(pts);
+    model["cell_moves"] = moves;
+    model["roofline"] = roofline(machine, runs);
+    model["memory"] = memory_model(runs);
+    model["traces"] = traces;
+    return model;
+}
+
+} // namespace sphperf::model

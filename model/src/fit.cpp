@@ -1,0 +1,155 @@
+#include "sphperf/model/fit.hpp"
+
+#include "sphperf/cli.hpp"
+
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_multifit.h>
+
+#include <cmath>
+#include <memory>
+#include <numeric>
+#include <set>
+#include <stdexcept>
+
+namespace sphperf::model {
+
+namespace {
+struct GslFree {
+    void operator()(gsl_matrix *m) const { gsl_matrix_free(m); }
+    void operator()(gsl_vector *v) const { gsl_vector_free(v); }
+    void operator()(gsl_multifit_linear_workspace *w) const { gsl_multifit_linear_free(w); }
+};
+template <class T> using Owned = std::unique_ptr<T, GslFree>;
+} // namespace
+
+double LinearFit::predict(std::span<const double> x) const {
+    double s = 0;
+    for (std::size_t k = 0; k < coef.size(); ++k)
+        s += coef[k] * x[k];
+    return s;
+}
+
+double LinearFit::coefficient(const std::string &term) const {
+    for (std::size_t k = 0; k < terms.size(); ++k)
+        if (terms[k] == term)
+            return coef[k];
+    return 0;
+}
+
+nlohmann::json LinearFit::to_json() const {
+    nlohmann::json c = nlohmann::json::object();
+    for (std::size_t k = 0; k < terms.size(); ++k)
+        c[terms[k]] = {{"value", coef[k]},
+                       {"se", se[k]},
+                       {"se_pct", coef[k] != 0 ? 100.0 * se[k] / std::abs(coef[k]) : 0.0}};
+    return {{"terms", terms},    {"coefficients", c}, {"covariance", cov},
+            {"r2", r2},          {"rse", rse},        {"points", points}};
+}
+
+LinearFit LinearFit::from_json(const nlohmann::json &j, const std::string &where) {
+    LinearFit f;
+    try {
+        f.terms = j.at("terms").get<std::vector<std::string>>();
+        for (const auto &t : f.terms) {
+            f.coef.push_back(j.at("coefficients").at(t).at("value").get<double>());
+            f.se.push_back(j.at("coefficients").at(t).at("se").get<double>());
+        }
+        f.r2 = j.at("r2").get<double>();
+        f.rse = j.at("rse").get<double>();
+        f.points = j.at("points").get<std::size_t>();
+    } catch (const nlohmann::json::exception &e) {
+        throw UsageError(where + ": " + e.what());
+    }
+    return f;
+}
+
+LinearFit fit_linear(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                     std::vector<std::string> terms) {
+    const std::size_t n = X.size(), p = terms.size();
+    if (n != y.size())
+        throw std::invalid_argument("fit: X and y differ in length");
+    if (n <= p)
+        throw std::invalid_argument("fit: " + std::to_string(n) + " points cannot determine " +
+                                    std::to_string(p) + " coefficients");
+    Owned<gsl_matrix> A(gsl_matrix_alloc(n, p)), C(gsl_matrix_alloc(p, p));
+    Owned<gsl_vector> b(gsl_vector_alloc(n)), c(gsl_vector_alloc(p));
+    for (std::size_t i = 0; i < n; ++i) {
+        if (X[i].size() != p)
+            throw std::invalid_argument("fit: a row of X has the wrong number of terms");
+        for (std::size_t k = 0; k < p; ++k)
+            gsl_matrix_set(A.get(), i, k, X[i][k]);
+        gsl_vector_set(b.get(), i, y[i]);
+    }
+    Owned<gsl_multifit_linear_workspace> work(gsl_multifit_linear_alloc(n, p));
+    double chisq = 0;
+    std::size_t rank = 0;
+    // SVD with a relative singular-value cut: a term that is a copy of another is rank lost,
+    // which we refuse rather than report meaningless standard errors.
+    gsl_set_error_handler_off();
+    if (gsl_multifit_linear_tsvd(A.get(), b.get(), 1e-12, c.get(), C.get(), &chisq, &rank,
+                                 work.get()) != GSL_SUCCESS ||
+        rank < p)
+        throw std::invalid_argument("fit: the terms are linearly dependent on these data");
+    LinearFit f;
+    f.terms = std::move(terms);
+    f.points = n;
+    const double dof = static_cast<double>(n - p);
+    for (std::size_t k = 0; k < p; ++k) {
+        f.coef.push_back(gsl_vector_get(c.get(), k));
+        f.se.push_back(std::sqrt(gsl_matrix_get(C.get(), k, k)));
+        f.cov.emplace_back();
+        for (std::size_t l = 0; l < p; ++l)
+            f.cov.back().push_back(gsl_matrix_get(C.get(), k, l));
+    }
+    const double mean = std::accumulate(y.begin(), y.end(), 0.0) / static_cast<double>(n);
+    double sst = 0;
+    for (double v : y)
+        sst += (v - mean) * (v - mean);
+    f.r2 = sst > 0 ? 1.0 - chisq / sst : 1.0;
+    f.rse = std::sqrt(chisq / dof);
+    return f;
+}
+
+LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y) {
+    std::vector<std::vector<double>> X;
+    for (double v : n)
+        X.push_back({v, 1.0});
+    return fit_linear(X, y, {"m", "r"});
+}
+
+double cross_validate(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                      std::span<const int> groups) {
+    std::set<int> distinct(groups.begin(), groups.end());
+    std::vector<int> fold(groups.begin(), groups.end());
+    if (distinct.size() < 2) {
+        constexpr int folds = 5;
+        for (std::size_t i = 0; i < fold.size(); ++i)
+            fold[i] = static_cast<int>(i % folds);
+        distinct.clear();
+        for (int k = 0; k < folds; ++k)
+            distinct.insert(k);
+    }
+    const std::size_t p = X.empty() ? 0 : X.front().size();
+    std::vector<std::string> names(p, "t");
+    double ss = 0;
+    std::size_t count = 0;
+    for (int g : distinct) {
+        std::vector<std::vector<double>> Xt;
+        std::vector<double> yt;
+        for (std::size_t i = 0; i < X.size(); ++i)
+            if (fold[i] != g) {
+                Xt.push_back(X[i]);
+                yt.push_back(y[i]);
+            }
+        const LinearFit f = fit_linear(Xt, yt, names);
+        for (std::size_t i = 0; i < X.size(); ++i)
+            if (fold[i] == g) {
+                const double e = f.predict(X[i]) - y[i];
+                ss += e * e;
+                ++count;
+            }
+    }
+    return std::sqrt(ss / static_cast<double>(std::max<std::size_t>(count, 1)));
+}
+
+} // namespace sphperf::model

@@ -1,0 +1,270 @@
+// sphmodel predict: workload per rank from the re-cut trace, work from the regressions, cost
+// from the fitted compute model and the Hockney links, then the blocking exchange's wait, the
+// idle ranks, and time-sharing when ranks x threads exceed the cores.
+#include "sphperf/cli.hpp"
+#include "sphperf/model/runtime.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+
+namespace sphperf::model {
+
+namespace {
+using nlohmann::json;
+
+constexpr int samples_per_interval = 4; // workload sampled at interval quarter-midpoints
+constexpr double count_bytes = sizeof(int);
+constexpr double density_bytes = sizeof(double);
+
+struct Costs {
+    LinearFit pairs, exports, interactions, compute, cell_moves;
+    CommModel comm;
+    double record_bytes = 72;
+    int cores = 1;
+};
+
+Costs costs_of(const json &model, const std::string &grid, int threads) {
+    Costs c;
+    try {
+        c.pairs = LinearFit::from_json(model.at("regressions").at("pairs"), "model regressions");
+        c.exports = LinearFit::from_json(model.at("regressions").at("exports"), "model regressions");
+        c.interactions =
+            LinearFit::from_json(model.at("regressions").at("interactions"), "model regressions");
+        bool found = false;
+        std::string have;
+        for (const auto &m : model.at("compute")) {
+            have += (have.empty() ? "" : ", ") + m.at("grid").get<std::string>() + "/" +
+                    std::to_string(m.at("threads").get<int>());
+            if (m.at("grid") == grid && m.at("threads") == threads) {
+                c.compute = LinearFit::from_json(m, "model compute");
+                found = true;
+            }
+        }
+        if (!found)
+            throw UsageError("the model has no compute cost for grid " + grid + " at " +
+                             std::to_string(threads) + " thread(s) (it has " + have +
+                             "): calibrate with such a run");
+        if (!model.at("cell_moves").contains(grid))
+            throw UsageError("the model has no cell-move fit for grid " + grid);
+        c.cell_moves = LinearFit::from_json(model.at("cell_moves").at(grid), "model cell_moves");
+        c.comm = CommModel::from_profile(model.at("machine"));
+        c.record_bytes = model.at("record_bytes").get<double>();
+        c.cores = model.at("machine").at("cores").get<int>();
+    } catch (const json::exception &e) {
+        throw UsageError(std::string("model: ") + e.what());
+    }
+    return c;
+}
+
+double linear_law(const LinearFit &f, double n) {
+    // p(n) = m n + r holds for ranks with field particles; none have no pairs.
+    return n > 0 ? std::max(0.0, f.coefficient("m") * n + f.coefficient("r")) : 0.0;
+}
+
+struct RankStep {
+    double field = 0, walls = 0, ghost = 0, exported = 0, exported_regression = 0, pairs = 0,
+           interactions = 0, compute_s = 0, comm_s = 0, wait_s = 0, idle_s = 0;
+};
+
+// One step of every rank, from the workload of the slabs.
+std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Costs &c,
+                                   int threads, double &step_s) {
+    const int P = static_cast<int>(loads.size());
+    const bool shared = P * threads > c.cores;
+    auto pu = [&](int r) { return shared || r < 0 || r >= P ? -1 : r * threads; };
+    std::vector<RankStep> out(static_cast<std::size_t>(P));
+    double longest = 0, demand = 0;
+    for (int r = 0; r < P; ++r) {
+        const SlabLoad &l = loads[static_cast<std::size_t>(r)];
+        RankStep &s = out[static_cast<std::size_t>(r)];
+        s.field = l.field;
+        s.walls = l.walls;
+        s.ghost = l.ghost;
+        s.exported = l.exported;
+        s.exported_regression = linear_law(c.exports, l.field);
+        s.pairs = linear_law(c.pairs, l.field);
+        s.interactions = linear_law(c.interactions, l.field);
+        std::vector<double> xm;
+        for (const auto &t : c.cell_moves.terms)
+            xm.push_back(t == "field" ? l.field : t == "walls" ? l.walls : t == "ghost" ? l.ghost : 1.0);
+        const double moves = std::max(0.0, c.cell_moves.predict(xm));
+        const RankWork w{l.field, l.walls, l.ghost, s.interactions, moves};
+        std::vector<double> x;
+        for (const auto &t : c.compute.terms)
+            x.push_back(w.value(t));
+        s.compute_s = std::max(0.0, c.compute.predict(x));
+        // Three exchanges (migration, ghosts, density), each an eastward then a westward shift
+        // of a count and a payload; migration payloads are taken as empty (a few particles).
+        if (P > 1) {
+            const bool west = r > 0, east = r + 1 < P;
+            const double in_from_west = west ? loads[static_cast<std::size_t>(r - 1)].export_east : -1;
+            const double in_from_east = east ? loads[static_cast<std::size_t>(r + 1)].export_west : -1;
+            auto shift = [&](double out_e, double in_w, double out_w, double in_e) {
+                return c.comm.sendrecv_seconds(pu(r), pu(r + 1), east ? out_e : -1, pu(r - 1),
+                                               west ? in_w : -1) +
+                       c.comm.sendrecv_seconds(pu(r), pu(r - 1), west ? out_w : -1, pu(r + 1),
+                                               east ? in_e : -1);
+            };
+            auto exchange = [&](double per_particle) {
+                return shift(count_bytes, count_bytes, count_bytes, count_bytes) +
+                       shift(l.export_east * per_particle, std::max(0.0, in_from_west) * per_particle,
+                             l.export_west * per_particle, std::max(0.0, in_from_east) * per_particle);
+            };
+            s.comm_s = exchange(0.0) + exchange(c.record_bytes) + exchange(density_bytes);
+        }
+        longest = std::max(longest, s.compute_s + s.comm_s);
+        demand += s.compute_s * threads;
+    }
+    // The exchanges are blocking: every rank's step lasts as long as the slowest. Above the
+    // core count the ranks take turns: the step lasts at least the summed demand per core.
+    step_s = shared ? std::max(longest, demand / c.cores) : longest;
+    for (auto &s : out) {
+        s.wait_s = std::max(0.0, step_s - s.compute_s - s.comm_s);
+        s.idle_s = s.field > 0 ? 0.0 : step_s;
+    }
+    return out;
+}
+} // namespace
+
+json predict(const json &header, const json &model, const PredictRequest &req) {
+    if (!model.contains("traces") || !model["traces"].contains(req.setup))
+        throw UsageError("the model has no workload trace of setup '" + req.setup +
+                         "': calibrate with a " + req.setup + " run");
+    const Trace trace = Trace::from_json(model["traces"][req.setup], "model trace " + req.setup);
+    const Costs costs = costs_of(model, req.grid, req.threads);
+    Costs c = costs;
+    if (req.cores > 0)
+        c.cores = req.cores;
+    const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
+    const Target probe = make_target(req.setup, req.grid, req.scale, req.delta, req.dt, max_ranks,
+                                     req.threads);
+    const std::int64_t steps =
+        req.steps ? *req.steps
+                  : static_cast<std::int64_t>(std::ceil(*req.end_time / req.dt - 1e-9));
+    // Refuse up front when the trace is too short, naming the time needed.
+    (void)histogram_at(trace, source_time(static_cast<double>(steps) * req.dt, trace.scale,
+                                          req.scale));
+
+    json out = header;
+    out["request"] = {{"setup", req.setup},   {"grid", req.grid},       {"scale", req.scale},
+                      {"delta", req.delta},   {"dt", req.dt},           {"steps", steps},
+                      {"threads", req.threads}, {"interval", req.interval}, {"cores", c.cores},
+                      {"ranks", req.ranks}};
+    out["model_source"] = {{"git_commit", model.value("git_commit", "")},
+                           {"timestamp", model.value("timestamp", "")},
+                           {"trace", trace.source},
+                           {"trace_scale", trace.scale},
+                           {"trace_delta", trace.delta}};
+    out["fluid_particles"] = probe.fluid_particles;
+    json configs = json::array();
+    for (int P : req.ranks) {
+        const Target tgt =
+            make_target(req.setup, req.grid, req.scale, req.delta, req.dt, P, req.threads);
+        json intervals = json::array();
+        std::vector<double> tot(static_cast<std::size_t>(P) * 6, 0.0);
+        double wall = 0, idle_onset_step = -1;
+        for (std::int64_t s0 = 0; s0 < steps; s0 += req.interval) {
+            const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
+            const double n = static_cast<double>(s1 - s0);
+            std::vector<RankStep> mean(static_cast<std::size_t>(P));
+            double step_mean = 0;
+            for (int k = 0; k < samples_per_interval; ++k) {
+                const double t =
+                    req.dt * (static_cast<double>(s0) + (k + 0.5) * n / samples_per_interval);
+                const auto src = histogram_at(trace, source_time(t, trace.scale, req.scale));
+                const auto cols = rescale_columns(src, trace.cell_size, trace.tank_length,
+                                                  tgt.cell_size, tgt.tank_length, tgt.columns,
+                                                  tgt.fluid_particles);
+                double step_s = 0;
+                const auto ranks = predict_step(recut(cols, tgt.wall_columns, P), c, req.threads,
+                                                step_s);
+                step_mean += step_s / samples_per_interval;
+                for (std::size_t r = 0; r < ranks.size(); ++r) {
+                    auto &m = mean[r];
+                    const auto &v = ranks[r];
+                    for (auto [dst, src_v] :
+                         {std::pair{&m.field, v.field}, {&m.walls, v.walls}, {&m.ghost, v.ghost},
+                          {&m.exported, v.exported},
+                          {&m.exported_regression, v.exported_regression}, {&m.pairs, v.pairs},
+                          {&m.interactions, v.interactions}, {&m.compute_s, v.compute_s},
+                          {&m.comm_s, v.comm_s}, {&m.wait_s, v.wait_s}, {&m.idle_s, v.idle_s}})
+                        *dst += src_v / samples_per_interval;
+                }
+            }
+            json jr = json::array();
+            bool all_busy = true;
+            for (std::size_t r = 0; r < mean.size(); ++r) {
+                const auto &m = mean[r];
+                all_busy = all_busy && m.field >= 1;
+                jr.push_back({{"field", m.field},
+                              {"walls", m.walls},
+                              {"ghost", m.ghost},
+                              {"exported", m.exported},
+                              {"exported_regression", m.exported_regression},
+                              {"pairs", m.pairs},
+                              {"interactions", m.interactions},
+                              {"compute_s", m.compute_s * n},
+                              {"comm_s", m.comm_s * n},
+                              {"wait_s", m.wait_s * n},
+                              {"idle_s", m.idle_s * n}});
+                double *t = &tot[r * 6];
+                t[0] += m.compute_s * n;
+                t[1] += m.comm_s * n;
+                t[2] += m.wait_s * n;
+                t[3] += m.idle_s * n;
+                t[4] += m.pairs * n;
+                t[5] += m.exported * n;
+            }
+            if (all_busy && idle_onset_step < 0)
+                idle_onset_step = static_cast<double>(s0);
+            wall += step_mean * n;
+            intervals.push_back({{"step", s1},
+                                 {"time_s", static_cast<double>(s1) * req.dt},
+                                 {"wall_s", step_mean * n},
+                                 {"ranks", jr}});
+        }
+        json per_rank = json::array();
+        double compute = 0, comm = 0, wait = 0, idle = 0;
+        for (int r = 0; r < P; ++r) {
+            const double *t = &tot[static_cast<std::size_t>(r) * 6];
+            per_rank.push_back({{"compute_s", t[0]},
+                                {"comm_s", t[1]},
+                                {"wait_s", t[2]},
+                                {"idle_s", t[3]},
+                                {"pairs_per_step", t[4] / static_cast<double>(steps)},
+                                {"exported_per_step", t[5] / static_cast<double>(steps)}});
+            compute += t[0];
+            comm += t[1];
+            wait += t[2];
+            idle += t[3];
+        }
+        configs.push_back({{"ranks", P},
+                           {"threads", req.threads},
+                           {"oversubscribed", P * req.threads > c.cores},
+                           {"wall_s", wall},
+                           {"totals",
+                            {{"compute_s", compute},
+                             {"comm_s", comm},
+                             {"wait_s", wait},
+                             {"idle_s", idle}}},
+                           {"first_step_all_ranks_busy",
+                            idle_onset_step >= 0 ? json(idle_onset_step) : json(nullptr)},
+                           {"per_rank", per_rank},
+                           {"intervals", intervals}});
+    }
+    // Speed-up and efficiency against the smallest rank count predicted.
+    const double base = configs.front()["wall_s"].get<double>() *
+                        configs.front()["ranks"].get<double>();
+    for (auto &cfg : configs) {
+        const double P = cfg["ranks"].get<double>();
+        const double w = cfg["wall_s"].get<double>();
+        cfg["speedup"] = base / configs.front()["ranks"].get<double>() / w;
+        cfg["efficiency"] = base / (P * w);
+    }
+    out["configurations"] = configs;
+    return out;
+}
+
+} // namespace sphperf::model

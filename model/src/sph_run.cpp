@@ -1,0 +1,132 @@
+#include "sphperf/model/sph_run.hpp"
+
+#include "sphperf/cli.hpp"
+#include "sphperf/model/profile.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+
+namespace sphperf::model {
+
+namespace {
+using nlohmann::json;
+
+// Non-finite or negative counts and times are as wrong as missing ones.
+void check_figure(double v, const std::string &key) {
+    if (!std::isfinite(v) || v < 0)
+        throw json::other_error::create(
+            501, "key '" + key + "' holds " + std::to_string(v) + ", expected a finite value >= 0",
+            nullptr);
+}
+double figure(const json &j, const char *key) {
+    const double v = j.at(key).get<double>();
+    check_figure(v, key);
+    return v;
+}
+} // namespace
+
+void from_json(const json &j, RankStats &r) {
+    r.steps = figure(j, "steps");
+    r.field = figure(j, "field");
+    r.field_mean = figure(j, "field_mean");
+    r.virtual_ = figure(j, "virtual");
+    r.ghost = figure(j, "ghost");
+    r.pairs = figure(j, "pairs");
+    r.interactions = figure(j, "interactions");
+    r.exported = figure(j, "exported");
+    r.migrated = figure(j, "migrated");
+    r.cell_moves = figure(j, "cell_moves");
+    r.idle_s = figure(j, "idle_s");
+    r.messages = figure(j, "messages");
+    r.message_bytes = figure(j, "message_bytes");
+    r.comm_predict_s = figure(j, "comm_predict_s");
+    for (const auto &[k, v] : j.at("timers").items()) {
+        r.timers[k] = v.get<double>();
+        check_figure(r.timers[k], "timers/" + k);
+    }
+    for (const char *k : {"pairs_s", "grid_s", "comp_s", "comm_s", "wait_s", "pack_s"})
+        if (!r.timers.count(k))
+            throw json::out_of_range::create(403, std::string("key 'timers/") + k + "' not found",
+                                             nullptr);
+}
+
+void from_json(const json &j, IntervalStats &iv) {
+    iv.step = j.at("step").get<std::int64_t>();
+    iv.time_s = figure(j, "time_s");
+    iv.columns = j.at("columns").get<std::vector<double>>();
+    iv.ranks = j.at("ranks").get<std::vector<RankStats>>();
+}
+
+void from_json(const json &j, RunConfig &c) {
+    c.setup = j.at("setup").get<std::string>();
+    c.grid = j.at("grid").get<std::string>();
+    c.boundary = j.at("boundary").get<std::string>();
+    c.scale = figure(j, "scale");
+    c.delta = figure(j, "delta");
+    c.dt = figure(j, "dt");
+    c.cell_size = figure(j, "cell_size");
+    c.tank_length = figure(j, "tank_length");
+    c.steps = j.at("steps").get<std::int64_t>();
+    c.fluid_particles = j.at("fluid_particles").get<std::int64_t>();
+    c.ranks = j.at("ranks").get<int>();
+    c.threads = j.at("threads").get<int>();
+    c.interval = j.at("interval").get<int>();
+    c.cell_columns = j.at("cell_columns").get<int>();
+    if (c.ranks < 1 || c.threads < 1 || c.cell_columns < 1 || c.steps < 0)
+        throw json::other_error::create(501, "config holds a non-positive count", nullptr);
+}
+
+double RankStats::timer(const std::string &key) const {
+    const auto it = timers.find(key);
+    return it == timers.end() ? 0.0 : it->second;
+}
+
+double RankStats::compute_s() const {
+    double s = 0;
+    for (const auto &[k, v] : timers)
+        if (k != "comm_s" && k != "wait_s" && k != "output_s")
+            s += v;
+    return s;
+}
+
+SphRun load_sph_run(const std::filesystem::path &path) {
+    const json j = load_report(path, "sph");
+    SphRun r;
+    r.path = path.string();
+    try {
+        r.host = j.at("host").get<std::string>();
+        r.git_commit = j.value("git_commit", "");
+        r.config = j.at("config").get<RunConfig>();
+        r.wall_s = figure(j, "wall_s");
+        r.record_bytes = figure(j, "record_bytes");
+        r.intervals = j.at("intervals").get<std::vector<IntervalStats>>();
+        r.initial_columns = j.at("initial_columns").get<std::vector<double>>();
+        r.wall_columns = j.at("wall_columns").get<std::vector<double>>();
+        r.peak_rss_bytes = j.at("peak_rss_bytes").get<std::vector<double>>();
+        r.placement_pus = j.at("placement_pus").get<std::vector<int>>();
+    } catch (const json::exception &e) {
+        throw UsageError("'" + path.string() + "': " + e.what());
+    }
+    const auto cols = static_cast<std::size_t>(r.config.cell_columns);
+    auto bad = [&](const std::string &what) {
+        throw UsageError("'" + path.string() + "': " + what);
+    };
+    if (r.intervals.empty())
+        bad("no intervals recorded (a run of 0 steps cannot calibrate anything)");
+    if (r.initial_columns.size() != cols || r.wall_columns.size() != cols)
+        bad("column histograms do not have config/cell_columns = " + std::to_string(cols) +
+            " entries");
+    for (const auto &iv : r.intervals) {
+        if (iv.columns.size() != cols)
+            bad("interval at step " + std::to_string(iv.step) + " has " +
+                std::to_string(iv.columns.size()) + " columns, expected " + std::to_string(cols));
+        if (iv.ranks.size() != static_cast<std::size_t>(r.config.ranks))
+            bad("interval at step " + std::to_string(iv.step) + " has " +
+                std::to_string(iv.ranks.size()) + " ranks, expected config/ranks = " +
+                std::to_string(r.config.ranks));
+    }
+    return r;
+}
+
+} // namespace sphperf::model

@@ -1,0 +1,155 @@
+// sphmodel: calibrate the SPH runtime model, predict runs per rank count, validate predictions.
+#include "sphperf/cli.hpp"
+#include "sphperf/model/profile.hpp"
+#include "sphperf/model/runtime.hpp"
+#include "sphperf/report.hpp"
+#include "sphperf/topology.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+
+namespace {
+
+using namespace sphperf;
+using namespace sphperf::model;
+
+// CLI11's number validators let NaN and inf through: refuse them too.
+const CLI::Validator Finite(
+    [](const std::string &s) {
+        try {
+            const double v = std::stod(s);
+            return std::isfinite(v) ? std::string() : "value " + s + " is not a finite number";
+        } catch (const std::exception &) {
+            return "value " + s + " is not a number";
+        }
+    },
+    "FINITE");
+
+struct Options {
+    std::filesystem::path machine, model, out;
+    std::vector<std::filesystem::path> runs, predictions, measured;
+    bool allow_other_host = false;
+    PredictRequest predict;
+    std::int64_t steps = 0;
+    double end_time = 0, max_error = 0;
+};
+
+int run(int argc, char **argv) {
+    Options o;
+    CLI::App app{"The SPH runtime model: calibrate it from SPH reports and a machine profile, "
+                 "predict the wall time per rank count with its breakdown, and validate "
+                 "predictions against measured reports."};
+    app.require_subcommand(1);
+    app.get_formatter()->column_width(34);
+
+    auto *cal = app.add_subcommand("calibrate", "Fit the model to SPH reports");
+    cal->add_option("--machine", o.machine, "machine.json (machine-profile)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    cal->add_option("--runs", o.runs, "SPH reports (sph --report) to calibrate with")
+        ->required()
+        ->check(CLI::ExistingFile);
+    cal->add_option("--out", o.out, "model to write (JSON)")->required();
+    cal->add_flag("--allow-other-host", o.allow_other_host,
+                  "Accept reports measured on another host than the machine profile's");
+
+    auto &q = o.predict;
+    auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
+    pre->add_option("--model", o.model, "model.json (sphmodel calibrate)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    pre->add_option("--setup", q.setup, "dambreak, still or column")->capture_default_str();
+    pre->add_option("--grid", q.grid, "list or table")->capture_default_str();
+    pre->add_option("--scale", q.scale, "Geometry scale")
+        ->capture_default_str()
+        ->check(Finite & CLI::PositiveNumber);
+    pre->add_option("--delta", q.delta, "Particle spacing, m")
+        ->capture_default_str()
+        ->check(Finite & CLI::PositiveNumber);
+    pre->add_option("--dt", q.dt, "Time step, s")
+        ->capture_default_str()
+        ->check(Finite & CLI::PositiveNumber);
+    pre->add_option("--ranks", q.ranks, "Rank counts, comma separated")
+        ->delimiter(',')
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
+    pre->add_option("--threads", q.threads, "OpenMP threads per rank")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1024));
+    auto *o_steps = pre->add_option("--steps", o.steps, "Time steps")->check(CLI::Range(
+        std::int64_t{1}, std::int64_t{1} << 40));
+    auto *o_end = pre->add_option("--end-time", o.end_time, "Simulated time, s")
+                      ->check(Finite & CLI::PositiveNumber);
+    o_steps->excludes(o_end);
+    pre->add_option("--interval", q.interval, "Steps per predicted interval (as sph --interval)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 30));
+    pre->add_option("--cores", q.cores, "Cores of the node (default: the model's machine)")
+        ->check(CLI::Range(1, 1 << 20));
+    pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
+
+    auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");
+    val->add_option("--prediction", o.predictions, "prediction files (sphmodel predict)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    val->add_option("--measured", o.measured, "measured SPH reports")
+        ->required()
+        ->check(CLI::ExistingFile);
+    auto *o_max = val->add_option("--max-error", o.max_error,
+                                  "Exit 1 when a wall-time |error| exceeds this fraction")
+                      ->check(Finite & CLI::NonNegativeNumber);
+    val->add_option("--out", o.out, "validation report to write (JSON)")->required();
+    parse_cli(app, argc, argv);
+
+    const JsonSink sink(o.out);
+    const Topology topo;
+    if (cal->parsed()) {
+        const auto machine = load_report(o.machine, "machine");
+        std::vector<SphRun> runs;
+        for (const auto &r : o.runs)
+            runs.push_back(load_sph_run(r));
+        const auto model =
+            calibrate(report_header("sphmodel-calibration", topo), machine, runs, {o.allow_other_host});
+        std::cout << calibration_table(model);
+        sink.write(model);
+    } else if (pre->parsed()) {
+        if (!o_steps->count() && !o_end->count())
+            throw UsageError("give the run length with --steps N or --end-time SECONDS");
+        if (o_steps->count())
+            q.steps = o.steps;
+        else
+            q.end_time = o.end_time;
+        const auto model = load_report(o.model, "sphmodel-calibration");
+        const auto prediction = predict(report_header("sphmodel-prediction", topo), model, q);
+        std::cout << prediction_table(prediction);
+        sink.write(prediction);
+    } else {
+        std::vector<nlohmann::json> predictions;
+        for (const auto &p : o.predictions)
+            predictions.push_back(load_report(p, "sphmodel-prediction"));
+        std::vector<SphRun> measured;
+        for (const auto &m : o.measured)
+            measured.push_back(load_sph_run(m));
+        ValidateOptions opt;
+        if (o_max->count())
+            opt.max_error = o.max_error;
+        bool exceeded = false;
+        const auto v = validate(report_header("sphmodel-validation", topo), predictions, measured,
+                                opt, exceeded);
+        std::cout << validation_table(v);
+        sink.write(v);
+        if (exceeded) {
+            std::cerr << "sphmodel: a wall-time error exceeds --max-error " << o.max_error << '\n';
+            return exit_failure;
+        }
+    }
+    std::cout << "written " << o.out.string() << '\n';
+    return 0;
+}
+
+} // namespace
+
+int main(int argc, char **argv) {
+    return sphperf::guarded_main("sphmodel", [&] { return run(argc, argv); });
+}

@@ -1,0 +1,273 @@
+// sphmodel validate: predicted against measured, per configuration and per phase, and the
+// communication error per interval over time (thesis Fig. 4.11), for the model and inline.
+#include "sphperf/cli.hpp"
+#include "sphperf/model/runtime.hpp"
+#include "sphperf/stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace sphperf::model {
+
+namespace {
+using nlohmann::json;
+
+double rel(double predicted, double measured) {
+    return measured > 0 ? (predicted - measured) / measured : (predicted > 0 ? 1.0 : 0.0);
+}
+
+bool same(double a, double b) {
+    return std::abs(a - b) <= 1e-9 * std::max(1.0, std::abs(b));
+}
+
+// The predicted configuration a measured run corresponds to, or null.
+const json *match(const std::vector<json> &predictions, const SphRun &m) {
+    for (const auto &p : predictions) {
+        const auto &q = p.at("request");
+        if (q.at("setup") != m.config.setup || q.at("grid") != m.config.grid ||
+            !same(q.at("scale").get<double>(), m.config.scale) ||
+            !same(q.at("delta").get<double>(), m.config.delta) ||
+            !same(q.at("dt").get<double>(), m.config.dt) ||
+            q.at("steps").get<std::int64_t>() != m.config.steps ||
+            q.at("threads").get<int>() != m.config.threads)
+            continue;
+        for (const auto &c : p.at("configurations"))
+            if (c.at("ranks").get<int>() == m.config.ranks)
+                return &c;
+    }
+    return nullptr;
+}
+} // namespace
+
+json validate(const json &header, const std::vector<json> &predictions,
+              const std::vector<SphRun> &measured, const ValidateOptions &opt, bool &exceeded) {
+    json out = header;
+    json rows = json::array(), unmatched = json::array();
+    std::vector<double> wall_errors, inline_comm_errors, model_comm_errors;
+    exceeded = false;
+    for (const auto &m : measured) {
+        const json *p = match(predictions, m);
+        if (!p) {
+            unmatched.push_back(m.path);
+            continue;
+        }
+        const int P = m.config.ranks;
+        double compute = 0, comm = 0, wait = 0, idle = 0, pairs = 0, exported = 0, inline_c = 0;
+        for (const auto &iv : m.intervals)
+            for (const auto &r : iv.ranks) {
+                compute += r.compute_s();
+                comm += r.timer("comm_s");
+                wait += r.timer("wait_s");
+                idle += r.idle_s;
+                pairs += r.pairs * r.steps;
+                exported += r.exported * r.steps;
+                inline_c += r.comm_predict_s;
+            }
+        const double steps = static_cast<double>(std::max<std::int64_t>(m.config.steps, 1));
+        const auto &pt = p->at("totals");
+        double p_pairs = 0, p_exp = 0;
+        for (const auto &r : p->at("per_rank")) {
+            p_pairs += r.at("pairs_per_step").get<double>();
+            p_exp += r.at("exported_per_step").get<double>();
+        }
+        double p_exp_reg = 0;
+        for (const auto &iv : p->at("intervals"))
+            for (const auto &r : iv.at("ranks"))
+                p_exp_reg += r.at("exported_regression").get<double>();
+        p_exp_reg /= std::max<std::size_t>(p->at("intervals").size(), 1);
+
+        // Per interval: communication measured, predicted by the model and inline.
+        json series = json::array();
+        const auto &piv = p->at("intervals");
+        if (piv.size() == m.intervals.size())
+            for (std::size_t k = 0; k < piv.size(); ++k) {
+                double mc = 0, ic = 0, pc = 0;
+                for (const auto &r : m.intervals[k].ranks) {
+                    mc += r.timer("comm_s");
+                    ic += r.comm_predict_s;
+                }
+                for (const auto &r : piv[k].at("ranks"))
+                    pc += r.at("comm_s").get<double>();
+                json e{{"step", m.intervals[k].step},
+                       {"time_s", m.intervals[k].time_s},
+                       {"measured_comm_s", mc},
+                       {"model_comm_s", pc},
+                       {"model_error", rel(pc, mc)}};
+                if (ic > 0) {
+                    e["inline_comm_s"] = ic;
+                    e["inline_error"] = rel(ic, mc);
+                    inline_comm_errors.push_back(std::abs(rel(ic, mc)));
+                }
+                if (P > 1)
+                    model_comm_errors.push_back(std::abs(rel(pc, mc)));
+                series.push_back(e);
+            }
+        const double err = rel(p->at("wall_s").get<double>(), m.wall_s);
+        wall_errors.push_back(std::abs(err));
+        if (opt.max_error && std::abs(err) > *opt.max_error)
+            exceeded = true;
+        json row{{"run", m.path},
+                 {"setup", m.config.setup},
+                 {"grid", m.config.grid},
+                 {"scale", m.config.scale},
+                 {"delta", m.config.delta},
+                 {"ranks", P},
+                 {"threads", m.config.threads},
+                 {"steps", m.config.steps},
+                 {"oversubscribed", p->at("oversubscribed")},
+                 {"measured_wall_s", m.wall_s},
+                 {"predicted_wall_s", p->at("wall_s")},
+                 {"wall_error", err},
+                 {"phases",
+                  {{"compute", {{"measured_s", compute}, {"predicted_s", pt.at("compute_s")},
+                                {"error", rel(pt.at("compute_s").get<double>(), compute)}}},
+                   {"comm", {{"measured_s", comm}, {"predicted_s", pt.at("comm_s")},
+                             {"inline_s", inline_c},
+                             {"error", rel(pt.at("comm_s").get<double>(), comm)}}},
+                   {"wait", {{"measured_s", wait}, {"predicted_s", pt.at("wait_s")},
+                             {"error", rel(pt.at("wait_s").get<double>(), wait)}}},
+                   {"idle", {{"measured_s", idle}, {"predicted_s", pt.at("idle_s")},
+                             {"error", rel(pt.at("idle_s").get<double>(), idle)}}}}},
+                 {"pairs_per_step",
+                  {{"counted", pairs / steps}, {"predicted", p_pairs},
+                   {"error", rel(p_pairs, pairs / steps)}}},
+                 {"exported_per_step",
+                  {{"counted", exported / steps},
+                   {"predicted_edge_columns", p_exp},
+                   {"error_edge_columns", rel(p_exp, exported / steps)},
+                   {"predicted_regression", p_exp_reg},
+                   {"error_regression", rel(p_exp_reg, exported / steps)}}},
+                 {"comm_series", series}};
+        rows.push_back(row);
+    }
+    auto summary = [](std::vector<double> v) -> json {
+        if (v.empty())
+            return nullptr;
+        const Summary s = summarize(v);
+        return {{"median", s.median}, {"max", s.max}, {"count", s.count}};
+    };
+    out["configurations"] = rows;
+    out["unmatched_runs"] = unmatched;
+    out["summary"] = {{"wall_abs_error", summary(wall_errors)},
+                      {"inline_comm_abs_error_per_interval", summary(inline_comm_errors)},
+                      {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
+                      {"max_error", opt.max_error ? json(*opt.max_error) : json(nullptr)},
+                      {"exceeded", exceeded}};
+    return out;
+}
+
+namespace {
+std::string fmt(const char *f, auto... v) {
+    char buf[512];
+    std::snprintf(buf, sizeof buf, f, v...);
+    return buf;
+}
+double d(const json &j) {
+    return j.is_number() ? j.get<double>() : 0.0;
+}
+} // namespace
+
+std::string calibration_table(const json &m) {
+    std::string s;
+    const auto &reg = m.at("regressions");
+    s += "Particle prediction coefficients (thesis Table 4.4 format; thesis values beside)\n";
+    s += fmt("  %-18s %-5s %14s %26s %10s %10s %22s\n", "function", "coef", "value",
+             "asymptotic std. error", "R^2", "RSE", "thesis");
+    for (const char *f : {"pairs", "exports", "interactions"}) {
+        const auto &r = reg.at(f);
+        for (const char *c : {"m", "r"}) {
+            const auto &cc = r.at("coefficients").at(c);
+            std::string thesis = "";
+            if (reg.at("thesis").contains(f))
+                thesis = fmt("%.6g (%.4g)", d(reg.at("thesis").at(f).at(c)),
+                             d(reg.at("thesis").at(f).at(std::string(c) + "_se")));
+            s += fmt("  %-18s %-5s %14.6g %14.4g (%6.2f %%) %10.4f %10.4g %22s\n",
+                     (std::string("p(n)_") + f).c_str(), c, d(cc.at("value")), d(cc.at("se")),
+                     d(cc.at("se_pct")), d(r.at("r2")), d(r.at("rse")), thesis.c_str());
+        }
+    }
+    s += "Compute cost per step per rank (terms chosen by leave-one-run-out cross-validation)\n";
+    for (const auto &c : m.at("compute")) {
+        s += fmt("  grid %-5s threads %d: R^2 %.4f, RSE %.3g s, CV RMSE %.3g s, %zu points\n",
+                 c.at("grid").get<std::string>().c_str(), c.at("threads").get<int>(),
+                 d(c.at("r2")), d(c.at("rse")), d(c.at("cv_rmse_s")),
+                 c.at("points").get<std::size_t>());
+        for (const auto &[t, v] : c.at("coefficients").items())
+            s += fmt("    %-13s %12.4g s  +- %.3g (%.1f %%)\n", t.c_str(), d(v.at("value")),
+                     d(v.at("se")), d(v.at("se_pct")));
+    }
+    const auto &rl = m.at("roofline");
+    s += fmt("Roofline: %.1f flops and %.1f bytes per interaction (thesis 89 and 56), intensity "
+             "%.2f flop/byte, ridge %.2f flop/byte\n",
+             d(rl.at("flops_per_interaction")), d(rl.at("bytes_per_interaction")),
+             d(rl.at("operational_intensity_flop_per_byte")),
+             d(rl.at("ceilings").at("ridge_flop_per_byte")));
+    for (const auto &p : rl.at("runs"))
+        s += fmt("  %-5s %d rank(s) x %d: %.2f GFLOP/s (%.1f %% of peak), %.2f GB/s (%.1f %% of "
+                 "triad)\n",
+                 p.at("grid").get<std::string>().c_str(), p.at("ranks").get<int>(),
+                 p.at("threads").get<int>(), d(p.at("achieved_gflops")),
+                 100 * d(p.at("fraction_of_peak")), d(p.at("achieved_GBps")),
+                 100 * d(p.at("fraction_of_triad")));
+    s += "  verdict: " + rl.at("verdict").get<std::string>() + "\n";
+    return s;
+}
+
+std::string prediction_table(const json &p) {
+    const auto &q = p.at("request");
+    std::string s = fmt("prediction: %s, grid %s, scale %g, delta %g, %lld steps, %d thread(s), "
+                        "%.0f field particles\n",
+                        q.at("setup").get<std::string>().c_str(),
+                        q.at("grid").get<std::string>().c_str(), d(q.at("scale")),
+                        d(q.at("delta")), q.at("steps").get<long long>(),
+                        q.at("threads").get<int>(), d(p.at("fluid_particles")));
+    s += fmt("  %5s %10s %8s %7s %11s %9s %9s %9s %s\n", "ranks", "wall_s", "speedup", "eff",
+             "compute_s", "comm_s", "wait_s", "idle_s", "all busy from step");
+    for (const auto &c : p.at("configurations")) {
+        const auto &t = c.at("totals");
+        s += fmt("  %5d %10.3f %8.2f %7.2f %11.3f %9.4f %9.3f %9.3f %s%s\n", c.at("ranks").get<int>(),
+                 d(c.at("wall_s")), d(c.at("speedup")), d(c.at("efficiency")),
+                 d(t.at("compute_s")), d(t.at("comm_s")), d(t.at("wait_s")), d(t.at("idle_s")),
+                 c.at("first_step_all_ranks_busy").is_null()
+                     ? "never"
+                     : std::to_string(c.at("first_step_all_ranks_busy").get<long long>()).c_str(),
+                 c.at("oversubscribed").get<bool>() ? "  (time-shared)" : "");
+    }
+    return s;
+}
+
+std::string validation_table(const json &v) {
+    std::string s = fmt("  %-8s %-5s %5s %5s %3s %6s %10s %10s %8s %8s %8s %8s %8s\n", "setup",
+                        "grid", "scale", "ranks", "thr", "steps", "measured", "predicted",
+                        "wall", "compute", "comm", "wait", "pairs");
+    for (const auto &r : v.at("configurations")) {
+        const auto &ph = r.at("phases");
+        s += fmt("  %-8s %-5s %5g %5d %3d %6lld %9.2fs %9.2fs %+7.1f%% %+7.1f%% %+7.1f%% %+7.1f%% "
+                 "%+7.1f%%\n",
+                 r.at("setup").get<std::string>().c_str(), r.at("grid").get<std::string>().c_str(),
+                 d(r.at("scale")), r.at("ranks").get<int>(), r.at("threads").get<int>(),
+                 r.at("steps").get<long long>(), d(r.at("measured_wall_s")),
+                 d(r.at("predicted_wall_s")), 100 * d(r.at("wall_error")),
+                 100 * d(ph.at("compute").at("error")), 100 * d(ph.at("comm").at("error")),
+                 100 * d(ph.at("wait").at("error")), 100 * d(r.at("pairs_per_step").at("error")));
+    }
+    const auto &sm = v.at("summary");
+    if (!sm.at("wall_abs_error").is_null())
+        s += fmt("  wall time |error|: median %.1f%%, max %.1f%% over %zu configurations\n",
+                 100 * d(sm.at("wall_abs_error").at("median")),
+                 100 * d(sm.at("wall_abs_error").at("max")),
+                 sm.at("wall_abs_error").at("count").get<std::size_t>());
+    if (!sm.at("inline_comm_abs_error_per_interval").is_null())
+        s += fmt("  communication, inline Hockney prediction, |error| per interval: median %.1f%%\n",
+                 100 * d(sm.at("inline_comm_abs_error_per_interval").at("median")));
+    if (!sm.at("model_comm_abs_error_per_interval").is_null())
+        s += fmt("  communication, model prediction, |error| per interval: median %.1f%%\n",
+                 100 * d(sm.at("model_comm_abs_error_per_interval").at("median")));
+    for (const auto &u : v.at("unmatched_runs"))
+        s += "  not in any prediction: " + u.get<std::string>() + "\n";
+    return s;
+}
+
+} // namespace sphperf::model
