@@ -1,27 +1,30 @@
 #!/usr/bin/env bash
-# The main job: characterise this node and write results/<hostname>/machine.json, then run a
-# short SPH dam break on it (results/<hostname>/sph_dambreak.json).
+# The main job: characterise this node, calibrate the SPH runtime model with short small runs,
+# predict a validation set, measure it, validate, and plot (results/<hostname>/).
 #   scripts/characterise-node.sh [--compare-coretypes SkylakeX,Haswell] [--quick] [--no-build]
+#                                [--no-model]
 # Builds if needed, then runs STREAM, DGEMM + peak probe (and DGEMM again with the OpenBLAS core
-# type it recommends, if any), and ping-pong on one rank per core. Nothing else should run on
-# the machine meanwhile: the figures are timings. --quick is a seconds-long smoke run whose
-# figures mean nothing. SPHPERF_RESULTS_DIR overrides results/.
+# type it recommends, if any), ping-pong on one rank per core, then the model (--no-model skips
+# it). Nothing else should run on the machine meanwhile: the figures are timings. --quick is a
+# smoke run whose figures mean little. SPHPERF_RESULTS_DIR overrides results/.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build="${SPHPERF_BUILD_DIR:-$root/build}"
 
 usage() {
-    sed -n '2,6p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+    sed -n '2,8p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
     exit "${1:-0}"
 }
 coretypes=""
 quick=0
 build_first=1
+model=1
 while [ $# -gt 0 ]; do
     case "$1" in
         --compare-coretypes) [ $# -ge 2 ] || usage 2; coretypes="$2"; shift 2 ;;
         --quick) quick=1; shift ;;
         --no-build) build_first=0; shift ;;
+        --no-model) model=0; shift ;;
         -h|--help) usage 0 ;;
         *) echo "characterise-node.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
     esac
@@ -47,9 +50,6 @@ if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
     stream_args=(--size 2000000 --reps 3)
     dgemm_args=(--sizes 300 --reps 2 --probe-reps 1)
     pingpong_args=(--max-bytes 65536 --max-samples 50)
-    sph_steps=50
-else
-    sph_steps=1000
 fi
 
 echo "== STREAM"
@@ -76,7 +76,10 @@ mkdir -p "$out"
     "${alts[@]}" --pingpong "$work/pingpong.json" --out "$work/machine.json"
 cp "$work"/*.json "$out/"
 
-echo "== SPH dam break, $sph_steps steps, 1 rank x $(nproc) threads"
-"$build/bin/sph" --setup dambreak --steps "$sph_steps" --interval "$sph_steps" \
-    --threads "$(nproc)" --quiet --report "$out/sph_dambreak.json"
+if [ "$model" -eq 0 ]; then
+    echo "profile: $out/machine.json"
+    exit 0
+fi
+bash "$root/scripts/model-node.sh" $([ "$quick" -eq 1 ] && echo --quick) --machine "$out/machine.json" \
+    --out "$out"
 echo "profile: $out/machine.json"

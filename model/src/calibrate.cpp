@@ -63,7 +63,20 @@ json regression(const std::vector<Point> &pts, double Point::*y) {
         throw UsageError("the calibration runs give " + std::to_string(n.size()) +
                          " rank-intervals with field particles; the regressions need >= 3 "
                          "(use more ranks or shorter --interval)");
-    return fit_line_mr(n, v).to_json();
+    try {
+        return fit_line_mr(n, v).to_json();
+    } catch (const std::invalid_argument &) {
+        // Every rank held about the same n (a still tank cut evenly): the intercept cannot be
+        // told from the slope, so the law is proportional, p = m n, and says so.
+        std::vector<std::vector<double>> X;
+        for (double x : n)
+            X.push_back({x});
+        json j = fit_linear(X, v, {"m"}).to_json();
+        j["terms"] = {"m", "r"};
+        j["coefficients"]["r"] = {{"value", 0.0}, {"se", 0.0}, {"se_pct", 0.0}};
+        j["intercept_fixed_at_zero"] = true;
+        return j;
+    }
 }
 
 // Cost fit for one grid and thread count: every subset of terms containing "interactions" is
@@ -99,7 +112,8 @@ json compute_fit(const std::vector<Point> &pts) {
                 best = terms;
             }
         } catch (const std::invalid_argument &) {
-            candidates.push_back({{"terms", terms}, {"cv_rmse_s", nullptr}, {"rank_deficient", true}});
+            candidates.push_back(
+                {{"terms", terms}, {"cv_rmse_s", nullptr}, {"rank_deficient", true}});
         }
     }
     if (best.empty())
@@ -165,8 +179,8 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
         // Achieved rates over the run's wall time on all its ranks.
         const double gflops = r.wall_s > 0 ? interactions * flops / r.wall_s * 1e-9 : 0.0;
         const double gbps = r.wall_s > 0 ? interactions * bytes / r.wall_s * 1e-9 : 0.0;
-        const int cores = std::min(r.config.ranks * r.config.threads,
-                                   machine.at("topology").value("cores", 1));
+        const int cores =
+            std::min(r.config.ranks * r.config.threads, machine.at("topology").value("cores", 1));
         points.push_back({{"run", r.path},
                           {"grid", r.config.grid},
                           {"ranks", r.config.ranks},
@@ -246,7 +260,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
 
     std::vector<Point> all;
     std::map<std::pair<std::string, int>, std::vector<Point>> by_grid_threads;
-    std::map<std::string, std::vector<Point>> by_grid;
+    std::map<std::string, std::vector<Point>> by_grid, by_setup;
     json traces = json::object(), sources = json::array();
     double record_bytes = 0;
     for (std::size_t i = 0; i < runs.size(); ++i) {
@@ -257,14 +271,16 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
         g.insert(g.end(), pts.begin(), pts.end());
         auto &gg = by_grid[r.config.grid];
         gg.insert(gg.end(), pts.begin(), pts.end());
+        auto &gs = by_setup[r.config.setup];
+        gs.insert(gs.end(), pts.begin(), pts.end());
         record_bytes = r.record_bytes;
         // Per setup keep the trace reaching furthest in Froude-scaled time.
         const Trace t = trace_of(r);
         const std::string key = r.config.setup;
         const double reach = t.end_time() / std::sqrt(t.scale);
-        if (!traces.contains(key) ||
-            traces[key]["end_time_s"].get<double>() / std::sqrt(traces[key]["scale"].get<double>()) <
-                reach) {
+        if (!traces.contains(key) || traces[key]["end_time_s"].get<double>() /
+                                             std::sqrt(traces[key]["scale"].get<double>()) <
+                                         reach) {
             traces[key] = t.to_json();
             traces[key]["end_time_s"] = t.end_time();
         }
@@ -293,21 +309,25 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
                         {"hockney", machine.at("hockney")}};
     model["calibration_runs"] = sources;
     model["record_bytes"] = record_bytes;
-    model["regressions"] = {{"pairs", regression(all, &Point::pairs)},
-                            {"exports", regression(all, &Point::exported)},
-                            {"thesis",
-                             {{"pairs", {{"m", 19.451}, {"m_se", 0.4994}, {"r", -589.96}, {"r_se", 299.6}}},
-                              {"exports",
-                               {{"m", 0.112845}, {"m_se", 0.004522}, {"r", -4.02341}, {"r_se", 2.713}}}}}};
-    {
-        // Interactions (ordered pairs acting on an owned particle) drive the compute cost.
-        std::vector<Point> held;
-        for (const auto &p : all)
-            held.push_back(p);
-        for (auto &p : held)
+    // The thesis' laws, per setup (a still tank packs its particles differently from a
+    // collapsing dam) and pooled; interactions (ordered pairs acting on an owned particle)
+    // drive the compute cost.
+    auto laws = [](std::vector<Point> pts) {
+        json j{{"pairs", regression(pts, &Point::pairs)},
+               {"exports", regression(pts, &Point::exported)}};
+        for (auto &p : pts)
             p.pairs = p.work.interactions;
-        model["regressions"]["interactions"] = regression(held, &Point::pairs);
-    }
+        j["interactions"] = regression(pts, &Point::pairs);
+        return j;
+    };
+    json regs = json::object();
+    for (const auto &[setup, pts] : by_setup)
+        regs[setup] = laws(pts);
+    regs["pooled"] = laws(all);
+    regs["thesis"] = {
+        {"pairs", {{"m", 19.451}, {"m_se", 0.4994}, {"r", -589.96}, {"r_se", 299.6}}},
+        {"exports", {{"m", 0.112845}, {"m_se", 0.004522}, {"r", -4.02341}, {"r_se", 2.713}}}};
+    model["regressions"] = regs;
     json compute = json::array();
     for (const auto &[key, pts] : by_grid_threads) {
         json c = compute_fit(pts);

@@ -42,8 +42,8 @@ nlohmann::json LinearFit::to_json() const {
         c[terms[k]] = {{"value", coef[k]},
                        {"se", se[k]},
                        {"se_pct", coef[k] != 0 ? 100.0 * se[k] / std::abs(coef[k]) : 0.0}};
-    return {{"terms", terms},    {"coefficients", c}, {"covariance", cov},
-            {"r2", r2},          {"rse", rse},        {"points", points}};
+    return {{"terms", terms}, {"coefficients", c}, {"covariance", cov},
+            {"r2", r2},       {"rse", rse},        {"points", points}};
 }
 
 LinearFit LinearFit::from_json(const nlohmann::json &j, const std::string &where) {

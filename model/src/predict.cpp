@@ -25,13 +25,16 @@ struct Costs {
     int cores = 1;
 };
 
-Costs costs_of(const json &model, const std::string &grid, int threads) {
+Costs costs_of(const json &model, const std::string &setup, const std::string &grid, int threads) {
     Costs c;
     try {
-        c.pairs = LinearFit::from_json(model.at("regressions").at("pairs"), "model regressions");
-        c.exports = LinearFit::from_json(model.at("regressions").at("exports"), "model regressions");
-        c.interactions =
-            LinearFit::from_json(model.at("regressions").at("interactions"), "model regressions");
+        if (!model.at("regressions").contains(setup))
+            throw UsageError("the model has no pair regressions of setup '" + setup +
+                             "': calibrate with a " + setup + " run");
+        const auto &reg = model.at("regressions").at(setup);
+        c.pairs = LinearFit::from_json(reg.at("pairs"), "model regressions");
+        c.exports = LinearFit::from_json(reg.at("exports"), "model regressions");
+        c.interactions = LinearFit::from_json(reg.at("interactions"), "model regressions");
         bool found = false;
         std::string have;
         for (const auto &m : model.at("compute")) {
@@ -69,8 +72,8 @@ struct RankStep {
 };
 
 // One step of every rank, from the workload of the slabs.
-std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Costs &c,
-                                   int threads, double &step_s) {
+std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Costs &c, int threads,
+                                   double &step_s) {
     const int P = static_cast<int>(loads.size());
     const bool shared = P * threads > c.cores;
     auto pu = [&](int r) { return shared || r < 0 || r >= P ? -1 : r * threads; };
@@ -88,7 +91,10 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
         s.interactions = linear_law(c.interactions, l.field);
         std::vector<double> xm;
         for (const auto &t : c.cell_moves.terms)
-            xm.push_back(t == "field" ? l.field : t == "walls" ? l.walls : t == "ghost" ? l.ghost : 1.0);
+            xm.push_back(t == "field"   ? l.field
+                         : t == "walls" ? l.walls
+                         : t == "ghost" ? l.ghost
+                                        : 1.0);
         const double moves = std::max(0.0, c.cell_moves.predict(xm));
         const RankWork w{l.field, l.walls, l.ghost, s.interactions, moves};
         std::vector<double> x;
@@ -99,8 +105,10 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
         // of a count and a payload; migration payloads are taken as empty (a few particles).
         if (P > 1) {
             const bool west = r > 0, east = r + 1 < P;
-            const double in_from_west = west ? loads[static_cast<std::size_t>(r - 1)].export_east : -1;
-            const double in_from_east = east ? loads[static_cast<std::size_t>(r + 1)].export_west : -1;
+            const double in_from_west =
+                west ? loads[static_cast<std::size_t>(r - 1)].export_east : -1;
+            const double in_from_east =
+                east ? loads[static_cast<std::size_t>(r + 1)].export_west : -1;
             auto shift = [&](double out_e, double in_w, double out_w, double in_e) {
                 return c.comm.sendrecv_seconds(pu(r), pu(r + 1), east ? out_e : -1, pu(r - 1),
                                                west ? in_w : -1) +
@@ -109,8 +117,10 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
             };
             auto exchange = [&](double per_particle) {
                 return shift(count_bytes, count_bytes, count_bytes, count_bytes) +
-                       shift(l.export_east * per_particle, std::max(0.0, in_from_west) * per_particle,
-                             l.export_west * per_particle, std::max(0.0, in_from_east) * per_particle);
+                       shift(l.export_east * per_particle,
+                             std::max(0.0, in_from_west) * per_particle,
+                             l.export_west * per_particle,
+                             std::max(0.0, in_from_east) * per_particle);
             };
             s.comm_s = exchange(0.0) + exchange(c.record_bytes) + exchange(density_bytes);
         }
@@ -133,25 +143,26 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         throw UsageError("the model has no workload trace of setup '" + req.setup +
                          "': calibrate with a " + req.setup + " run");
     const Trace trace = Trace::from_json(model["traces"][req.setup], "model trace " + req.setup);
-    const Costs costs = costs_of(model, req.grid, req.threads);
+    const Costs costs = costs_of(model, req.setup, req.grid, req.threads);
     Costs c = costs;
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
-    const Target probe = make_target(req.setup, req.grid, req.scale, req.delta, req.dt, max_ranks,
-                                     req.threads);
+    const Target probe =
+        make_target(req.setup, req.grid, req.scale, req.delta, req.dt, max_ranks, req.threads);
     const std::int64_t steps =
         req.steps ? *req.steps
                   : static_cast<std::int64_t>(std::ceil(*req.end_time / req.dt - 1e-9));
     // Refuse up front when the trace is too short, naming the time needed.
-    (void)histogram_at(trace, source_time(static_cast<double>(steps) * req.dt, trace.scale,
-                                          req.scale));
+    (void)histogram_at(trace,
+                       source_time(static_cast<double>(steps) * req.dt, trace.scale, req.scale));
 
     json out = header;
-    out["request"] = {{"setup", req.setup},   {"grid", req.grid},       {"scale", req.scale},
-                      {"delta", req.delta},   {"dt", req.dt},           {"steps", steps},
-                      {"threads", req.threads}, {"interval", req.interval}, {"cores", c.cores},
-                      {"ranks", req.ranks}};
+    out["request"] = {{"setup", req.setup},     {"grid", req.grid},
+                      {"scale", req.scale},     {"delta", req.delta},
+                      {"dt", req.dt},           {"steps", steps},
+                      {"threads", req.threads}, {"interval", req.interval},
+                      {"cores", c.cores},       {"ranks", req.ranks}};
     out["model_source"] = {{"git_commit", model.value("git_commit", "")},
                            {"timestamp", model.value("timestamp", "")},
                            {"trace", trace.source},
@@ -174,22 +185,27 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 const double t =
                     req.dt * (static_cast<double>(s0) + (k + 0.5) * n / samples_per_interval);
                 const auto src = histogram_at(trace, source_time(t, trace.scale, req.scale));
-                const auto cols = rescale_columns(src, trace.cell_size, trace.tank_length,
-                                                  tgt.cell_size, tgt.tank_length, tgt.columns,
-                                                  tgt.fluid_particles);
+                const auto cols =
+                    rescale_columns(src, trace.cell_size, trace.tank_length, tgt.cell_size,
+                                    tgt.tank_length, tgt.columns, tgt.fluid_particles);
                 double step_s = 0;
-                const auto ranks = predict_step(recut(cols, tgt.wall_columns, P), c, req.threads,
-                                                step_s);
+                const auto ranks =
+                    predict_step(recut(cols, tgt.wall_columns, P), c, req.threads, step_s);
                 step_mean += step_s / samples_per_interval;
                 for (std::size_t r = 0; r < ranks.size(); ++r) {
                     auto &m = mean[r];
                     const auto &v = ranks[r];
-                    for (auto [dst, src_v] :
-                         {std::pair{&m.field, v.field}, {&m.walls, v.walls}, {&m.ghost, v.ghost},
-                          {&m.exported, v.exported},
-                          {&m.exported_regression, v.exported_regression}, {&m.pairs, v.pairs},
-                          {&m.interactions, v.interactions}, {&m.compute_s, v.compute_s},
-                          {&m.comm_s, v.comm_s}, {&m.wait_s, v.wait_s}, {&m.idle_s, v.idle_s}})
+                    for (auto [dst, src_v] : {std::pair{&m.field, v.field},
+                                              {&m.walls, v.walls},
+                                              {&m.ghost, v.ghost},
+                                              {&m.exported, v.exported},
+                                              {&m.exported_regression, v.exported_regression},
+                                              {&m.pairs, v.pairs},
+                                              {&m.interactions, v.interactions},
+                                              {&m.compute_s, v.compute_s},
+                                              {&m.comm_s, v.comm_s},
+                                              {&m.wait_s, v.wait_s},
+                                              {&m.idle_s, v.idle_s}})
                         *dst += src_v / samples_per_interval;
                 }
             }
@@ -240,23 +256,21 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
             wait += t[2];
             idle += t[3];
         }
-        configs.push_back({{"ranks", P},
-                           {"threads", req.threads},
-                           {"oversubscribed", P * req.threads > c.cores},
-                           {"wall_s", wall},
-                           {"totals",
-                            {{"compute_s", compute},
-                             {"comm_s", comm},
-                             {"wait_s", wait},
-                             {"idle_s", idle}}},
-                           {"first_step_all_ranks_busy",
-                            idle_onset_step >= 0 ? json(idle_onset_step) : json(nullptr)},
-                           {"per_rank", per_rank},
-                           {"intervals", intervals}});
+        configs.push_back(
+            {{"ranks", P},
+             {"threads", req.threads},
+             {"oversubscribed", P * req.threads > c.cores},
+             {"wall_s", wall},
+             {"totals",
+              {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},
+             {"first_step_all_ranks_busy",
+              idle_onset_step >= 0 ? json(idle_onset_step) : json(nullptr)},
+             {"per_rank", per_rank},
+             {"intervals", intervals}});
     }
     // Speed-up and efficiency against the smallest rank count predicted.
-    const double base = configs.front()["wall_s"].get<double>() *
-                        configs.front()["ranks"].get<double>();
+    const double base =
+        configs.front()["wall_s"].get<double>() * configs.front()["ranks"].get<double>();
     for (auto &cfg : configs) {
         const double P = cfg["ranks"].get<double>();
         const double w = cfg["wall_s"].get<double>();

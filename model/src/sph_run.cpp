@@ -123,8 +123,8 @@ SphRun load_sph_run(const std::filesystem::path &path) {
                 std::to_string(iv.columns.size()) + " columns, expected " + std::to_string(cols));
         if (iv.ranks.size() != static_cast<std::size_t>(r.config.ranks))
             bad("interval at step " + std::to_string(iv.step) + " has " +
-                std::to_string(iv.ranks.size()) + " ranks, expected config/ranks = " +
-                std::to_string(r.config.ranks));
+                std::to_string(iv.ranks.size()) +
+                " ranks, expected config/ranks = " + std::to_string(r.config.ranks));
     }
     return r;
 }

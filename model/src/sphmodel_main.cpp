@@ -77,8 +77,8 @@ int run(int argc, char **argv) {
     pre->add_option("--threads", q.threads, "OpenMP threads per rank")
         ->capture_default_str()
         ->check(CLI::Range(1, 1024));
-    auto *o_steps = pre->add_option("--steps", o.steps, "Time steps")->check(CLI::Range(
-        std::int64_t{1}, std::int64_t{1} << 40));
+    auto *o_steps = pre->add_option("--steps", o.steps, "Time steps")
+                        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
     auto *o_end = pre->add_option("--end-time", o.end_time, "Simulated time, s")
                       ->check(Finite & CLI::PositiveNumber);
     o_steps->excludes(o_end);
@@ -109,8 +109,8 @@ int run(int argc, char **argv) {
         std::vector<SphRun> runs;
         for (const auto &r : o.runs)
             runs.push_back(load_sph_run(r));
-        const auto model =
-            calibrate(report_header("sphmodel-calibration", topo), machine, runs, {o.allow_other_host});
+        const auto model = calibrate(report_header("sphmodel-calibration", topo), machine, runs,
+                                     {o.allow_other_host});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -121,17 +121,26 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"predicted_wall_s", p->at("wall_s")},
                  {"wall_error", err},
                  {"phases",
-                  {{"compute", {{"measured_s", compute}, {"predicted_s", pt.at("compute_s")},
-                                {"error", rel(pt.at("compute_s").get<double>(), compute)}}},
-                   {"comm", {{"measured_s", comm}, {"predicted_s", pt.at("comm_s")},
-                             {"inline_s", inline_c},
-                             {"error", rel(pt.at("comm_s").get<double>(), comm)}}},
-                   {"wait", {{"measured_s", wait}, {"predicted_s", pt.at("wait_s")},
-                             {"error", rel(pt.at("wait_s").get<double>(), wait)}}},
-                   {"idle", {{"measured_s", idle}, {"predicted_s", pt.at("idle_s")},
-                             {"error", rel(pt.at("idle_s").get<double>(), idle)}}}}},
+                  {{"compute",
+                    {{"measured_s", compute},
+                     {"predicted_s", pt.at("compute_s")},
+                     {"error", rel(pt.at("compute_s").get<double>(), compute)}}},
+                   {"comm",
+                    {{"measured_s", comm},
+                     {"predicted_s", pt.at("comm_s")},
+                     {"inline_s", inline_c},
+                     {"error", rel(pt.at("comm_s").get<double>(), comm)}}},
+                   {"wait",
+                    {{"measured_s", wait},
+                     {"predicted_s", pt.at("wait_s")},
+                     {"error", rel(pt.at("wait_s").get<double>(), wait)}}},
+                   {"idle",
+                    {{"measured_s", idle},
+                     {"predicted_s", pt.at("idle_s")},
+                     {"error", rel(pt.at("idle_s").get<double>(), idle)}}}}},
                  {"pairs_per_step",
-                  {{"counted", pairs / steps}, {"predicted", p_pairs},
+                  {{"counted", pairs / steps},
+                   {"predicted", p_pairs},
                    {"error", rel(p_pairs, pairs / steps)}}},
                  {"exported_per_step",
                   {{"counted", exported / steps},
@@ -173,27 +182,31 @@ std::string calibration_table(const json &m) {
     std::string s;
     const auto &reg = m.at("regressions");
     s += "Particle prediction coefficients (thesis Table 4.4 format; thesis values beside)\n";
-    s += fmt("  %-18s %-5s %14s %26s %10s %10s %22s\n", "function", "coef", "value",
+    s += fmt("  %-9s %-18s %-5s %14s %26s %8s %10s %22s\n", "setup", "function", "coef", "value",
              "asymptotic std. error", "R^2", "RSE", "thesis");
-    for (const char *f : {"pairs", "exports", "interactions"}) {
-        const auto &r = reg.at(f);
-        for (const char *c : {"m", "r"}) {
-            const auto &cc = r.at("coefficients").at(c);
-            std::string thesis = "";
-            if (reg.at("thesis").contains(f))
-                thesis = fmt("%.6g (%.4g)", d(reg.at("thesis").at(f).at(c)),
-                             d(reg.at("thesis").at(f).at(std::string(c) + "_se")));
-            s += fmt("  %-18s %-5s %14.6g %14.4g (%6.2f %%) %10.4f %10.4g %22s\n",
-                     (std::string("p(n)_") + f).c_str(), c, d(cc.at("value")), d(cc.at("se")),
-                     d(cc.at("se_pct")), d(r.at("r2")), d(r.at("rse")), thesis.c_str());
+    for (const auto &[setup, laws] : reg.items()) {
+        if (setup == "thesis")
+            continue;
+        for (const char *f : {"pairs", "exports", "interactions"}) {
+            const auto &r = laws.at(f);
+            for (const char *c : {"m", "r"}) {
+                const auto &cc = r.at("coefficients").at(c);
+                std::string thesis;
+                if (reg.at("thesis").contains(f))
+                    thesis = fmt("%.6g (%.4g)", d(reg.at("thesis").at(f).at(c)),
+                                 d(reg.at("thesis").at(f).at(std::string(c) + "_se")));
+                s += fmt("  %-9s %-18s %-5s %14.6g %14.4g (%6.2f %%) %8.4f %10.4g %22s\n",
+                         setup.c_str(), (std::string("p(n)_") + f).c_str(), c, d(cc.at("value")),
+                         d(cc.at("se")), d(cc.at("se_pct")), d(r.at("r2")), d(r.at("rse")),
+                         thesis.c_str());
+            }
         }
     }
     s += "Compute cost per step per rank (terms chosen by leave-one-run-out cross-validation)\n";
     for (const auto &c : m.at("compute")) {
         s += fmt("  grid %-5s threads %d: R^2 %.4f, RSE %.3g s, CV RMSE %.3g s, %zu points\n",
-                 c.at("grid").get<std::string>().c_str(), c.at("threads").get<int>(),
-                 d(c.at("r2")), d(c.at("rse")), d(c.at("cv_rmse_s")),
-                 c.at("points").get<std::size_t>());
+                 c.at("grid").get<std::string>().c_str(), c.at("threads").get<int>(), d(c.at("r2")),
+                 d(c.at("rse")), d(c.at("cv_rmse_s")), c.at("points").get<std::size_t>());
         for (const auto &[t, v] : c.at("coefficients").items())
             s += fmt("    %-13s %12.4g s  +- %.3g (%.1f %%)\n", t.c_str(), d(v.at("value")),
                      d(v.at("se")), d(v.at("se_pct")));
@@ -217,19 +230,20 @@ std::string calibration_table(const json &m) {
 
 std::string prediction_table(const json &p) {
     const auto &q = p.at("request");
-    std::string s = fmt("prediction: %s, grid %s, scale %g, delta %g, %lld steps, %d thread(s), "
-                        "%.0f field particles\n",
-                        q.at("setup").get<std::string>().c_str(),
-                        q.at("grid").get<std::string>().c_str(), d(q.at("scale")),
-                        d(q.at("delta")), q.at("steps").get<long long>(),
-                        q.at("threads").get<int>(), d(p.at("fluid_particles")));
+    std::string s =
+        fmt("prediction: %s, grid %s, scale %g, delta %g, %lld steps, %d thread(s), "
+            "%.0f field particles\n",
+            q.at("setup").get<std::string>().c_str(), q.at("grid").get<std::string>().c_str(),
+            d(q.at("scale")), d(q.at("delta")), q.at("steps").get<long long>(),
+            q.at("threads").get<int>(), d(p.at("fluid_particles")));
     s += fmt("  %5s %10s %8s %7s %11s %9s %9s %9s %s\n", "ranks", "wall_s", "speedup", "eff",
              "compute_s", "comm_s", "wait_s", "idle_s", "all busy from step");
     for (const auto &c : p.at("configurations")) {
         const auto &t = c.at("totals");
-        s += fmt("  %5d %10.3f %8.2f %7.2f %11.3f %9.4f %9.3f %9.3f %s%s\n", c.at("ranks").get<int>(),
-                 d(c.at("wall_s")), d(c.at("speedup")), d(c.at("efficiency")),
-                 d(t.at("compute_s")), d(t.at("comm_s")), d(t.at("wait_s")), d(t.at("idle_s")),
+        s += fmt("  %5d %10.3f %8.2f %7.2f %11.3f %9.4f %9.3f %9.3f %s%s\n",
+                 c.at("ranks").get<int>(), d(c.at("wall_s")), d(c.at("speedup")),
+                 d(c.at("efficiency")), d(t.at("compute_s")), d(t.at("comm_s")), d(t.at("wait_s")),
+                 d(t.at("idle_s")),
                  c.at("first_step_all_ranks_busy").is_null()
                      ? "never"
                      : std::to_string(c.at("first_step_all_ranks_busy").get<long long>()).c_str(),
@@ -240,8 +254,8 @@ std::string prediction_table(const json &p) {
 
 std::string validation_table(const json &v) {
     std::string s = fmt("  %-8s %-5s %5s %5s %3s %6s %10s %10s %8s %8s %8s %8s %8s\n", "setup",
-                        "grid", "scale", "ranks", "thr", "steps", "measured", "predicted",
-                        "wall", "compute", "comm", "wait", "pairs");
+                        "grid", "scale", "ranks", "thr", "steps", "measured", "predicted", "wall",
+                        "compute", "comm", "wait", "pairs");
     for (const auto &r : v.at("configurations")) {
         const auto &ph = r.at("phases");
         s += fmt("  %-8s %-5s %5g %5d %3d %6lld %9.2fs %9.2fs %+7.1f%% %+7.1f%% %+7.1f%% %+7.1f%% "
@@ -260,8 +274,9 @@ std::string validation_table(const json &v) {
                  100 * d(sm.at("wall_abs_error").at("max")),
                  sm.at("wall_abs_error").at("count").get<std::size_t>());
     if (!sm.at("inline_comm_abs_error_per_interval").is_null())
-        s += fmt("  communication, inline Hockney prediction, |error| per interval: median %.1f%%\n",
-                 100 * d(sm.at("inline_comm_abs_error_per_interval").at("median")));
+        s +=
+            fmt("  communication, inline Hockney prediction, |error| per interval: median %.1f%%\n",
+                100 * d(sm.at("inline_comm_abs_error_per_interval").at("median")));
     if (!sm.at("model_comm_abs_error_per_interval").is_null())
         s += fmt("  communication, model prediction, |error| per interval: median %.1f%%\n",
                  100 * d(sm.at("model_comm_abs_error_per_interval").at("median")));

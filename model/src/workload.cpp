@@ -13,9 +13,9 @@
 namespace sphperf::model {
 
 nlohmann::json Trace::to_json() const {
-    return {{"setup", setup},         {"source", source},   {"scale", scale},
-            {"delta", delta},         {"cell_size", cell_size}, {"tank_length", tank_length},
-            {"times_s", times_s},     {"columns", columns}};
+    return {{"setup", setup},     {"source", source},       {"scale", scale},
+            {"delta", delta},     {"cell_size", cell_size}, {"tank_length", tank_length},
+            {"times_s", times_s}, {"columns", columns}};
 }
 
 Trace Trace::from_json(const nlohmann::json &j, const std::string &where) {
@@ -117,15 +117,15 @@ std::vector<double> rescale_columns(const std::vector<double> &source, double so
     for (int c = 0; c < target_columns; ++c) {
         // The last column reaches the tank wall (it may be a partial cell).
         const double a = c * target_cell / stretch;
-        const double b = (c + 1 == target_columns) ? source_tank + source_cell
-                                                   : (c + 1) * target_cell / stretch;
+        const double b =
+            (c + 1 == target_columns) ? source_tank + source_cell : (c + 1) * target_cell / stretch;
         double sum = 0;
         for (int s = std::max(0, static_cast<int>(a / source_cell) - 1);
              s < ns && s * source_cell < b; ++s) {
             const double lo = s * source_cell;
             // The source's last column also holds what lies beyond the tank end.
-            const double hi = (s + 1 == ns) ? std::max(source_tank, lo + source_cell)
-                                            : lo + source_cell;
+            const double hi =
+                (s + 1 == ns) ? std::max(source_tank, lo + source_cell) : lo + source_cell;
             const double overlap = std::min(b, hi) - std::max(a, lo);
             if (overlap > 0)
                 sum += source[static_cast<std::size_t>(s)] * overlap / (hi - lo);

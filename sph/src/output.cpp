@@ -171,13 +171,20 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     for (const auto &iv : run.intervals) {
         nlohmann::json jiv{{"step", iv.step}, {"time_s", iv.time_s}, {"columns", iv.columns}};
         for (const auto &r : iv.ranks) {
-            nlohmann::json jr{{"steps", r.steps},           {"field", r.field},
-                              {"virtual", r.virtual_},      {"ghost", r.ghost},
-                              {"pairs", r.pairs},           {"interactions", r.interactions},
-                              {"exported", r.exported},     {"migrated", r.migrated},
-                              {"cell_moves", r.cell_moves}, {"idle_s", r.idle_s},
-                              {"escaped", r.escaped},       {"reflected", r.reflected},
-                              {"field_mean", r.field_mean}, {"messages", r.messages},
+            nlohmann::json jr{{"steps", r.steps},
+                              {"field", r.field},
+                              {"virtual", r.virtual_},
+                              {"ghost", r.ghost},
+                              {"pairs", r.pairs},
+                              {"interactions", r.interactions},
+                              {"exported", r.exported},
+                              {"migrated", r.migrated},
+                              {"cell_moves", r.cell_moves},
+                              {"idle_s", r.idle_s},
+                              {"escaped", r.escaped},
+                              {"reflected", r.reflected},
+                              {"field_mean", r.field_mean},
+                              {"messages", r.messages},
                               {"message_bytes", r.message_bytes},
                               {"comm_predict_s", r.comm_predict_s}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)

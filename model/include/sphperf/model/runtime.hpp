@@ -60,7 +60,8 @@ struct ValidateOptions {
     std::optional<double> max_error; // fraction
 };
 // Returns the report; `exceeded` tells whether any total wall-time error passed max_error.
-nlohmann::json validate(const nlohmann::json &header, const std::vector<nlohmann::json> &predictions,
+nlohmann::json validate(const nlohmann::json &header,
+                        const std::vector<nlohmann::json> &predictions,
                         const std::vector<SphRun> &measured, const ValidateOptions &opt,
                         bool &exceeded);
 

@@ -12,19 +12,19 @@ namespace sphperf::sph {
 // One rank over one report interval. Counts are means per step unless noted.
 struct RankInterval {
     double steps = 0;
-    double field = 0;        // fluid particles owned at the end of the interval
-    double virtual_ = 0;     // mirror particles made (mirror) or wall particles owned (fixed)
-    double ghost = 0;        // ghost particles received
-    double pairs = 0;        // unordered interacting pairs found
-    double interactions = 0; // ordered pairs (i, j) contributing to an owned particle i
-    double exported = 0;     // particles sent as ghosts
-    double migrated = 0;     // particles that left this rank, total over the interval
-    double cell_moves = 0;   // particles (re)filed in a cell
-    double idle_s = 0;       // time with no fluid particle to work on
-    double escaped = 0;      // fluid particles outside the tank (through a wall or the floor)
-    double reflected = 0;    // mirror boundary: particles reflected back at a wall, total
-    double field_mean = 0;   // fluid particles owned, mean over the interval's steps
-    double messages = 0;     // MPI messages sent, total (counts and payloads)
+    double field = 0;          // fluid particles owned at the end of the interval
+    double virtual_ = 0;       // mirror particles made (mirror) or wall particles owned (fixed)
+    double ghost = 0;          // ghost particles received
+    double pairs = 0;          // unordered interacting pairs found
+    double interactions = 0;   // ordered pairs (i, j) contributing to an owned particle i
+    double exported = 0;       // particles sent as ghosts
+    double migrated = 0;       // particles that left this rank, total over the interval
+    double cell_moves = 0;     // particles (re)filed in a cell
+    double idle_s = 0;         // time with no fluid particle to work on
+    double escaped = 0;        // fluid particles outside the tank (through a wall or the floor)
+    double reflected = 0;      // mirror boundary: particles reflected back at a wall, total
+    double field_mean = 0;     // fluid particles owned, mean over the interval's steps
+    double messages = 0;       // MPI messages sent, total (counts and payloads)
     double message_bytes = 0;  // their payload bytes, total
     double comm_predict_s = 0; // Hockney prediction of those transfers (sph --machine), total
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};

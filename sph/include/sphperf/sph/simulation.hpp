@@ -194,8 +194,7 @@ template <CellGrid Grid> void Simulation<Grid>::check_conservation(std::int64_t 
                           : " on rank(s) " + culprits + " (holdings differ from migrations)"));
 }
 
-template <CellGrid Grid>
-std::vector<double> Simulation<Grid>::column_histogram(bool fluid) const {
+template <CellGrid Grid> std::vector<double> Simulation<Grid>::column_histogram(bool fluid) const {
     std::vector<double> columns(static_cast<std::size_t>(geo_.cell_columns), 0.0);
     const std::size_t begin = fluid ? 0 : p_.fluid(), end = fluid ? p_.fluid() : p_.owned();
     for (std::size_t i = begin; i < end; ++i)

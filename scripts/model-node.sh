@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# The model half of the main job: calibrate the SPH runtime model with short runs at half
+# scale, predict a validation set it never ran, measure that set, validate, and plot.
+#   scripts/model-node.sh --machine MACHINE.json --out DIR [--quick]
+# Writes DIR/{model,prediction_*,validation}.json, validation.md, the PNGs, and the SPH
+# reports under DIR/runs/. Nothing else should run meanwhile: the figures are timings.
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build="${SPHPERF_BUILD_DIR:-$root/build}"
+usage() { sed -n '2,6p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+machine="" out="" quick=0
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --machine) [ $# -ge 2 ] || usage 2; machine="$2"; shift 2 ;;
+        --out) [ $# -ge 2 ] || usage 2; out="$2"; shift 2 ;;
+        --quick) quick=1; shift ;;
+        -h|--help) usage 0 ;;
+        *) echo "model-node.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+    esac
+done
+[ -n "$machine" ] && [ -n "$out" ] || usage 2
+[ -f "$machine" ] || { echo "model-node.sh: machine profile '$machine' not found" >&2; exit 2; }
+runs="$out/runs"
+mkdir -p "$runs"
+rm -f "$runs"/*.json
+sph() { # sph RANKS NAME ARGS...: one measured run, 1 thread per rank, inline Hockney prediction
+    local ranks=$1 name=$2
+    shift 2
+    local t0=$SECONDS
+    bash "$root/scripts/mpirun.sh" -n "$ranks" -t 1 "$build/bin/sph" --quiet --threads 1 \
+        --machine "$machine" --report "$runs/$name.json" "$@" >/dev/null
+    printf '  %-28s %4d s\n' "$name" $((SECONDS - t0))
+}
+
+# Validation steps per setup and scale, and calibration reach: the half-scale calibration must
+# cover the validation's simulated time in Froude time, t_cal = t_val sqrt(0.5 / scale).
+if [ "$quick" -eq 1 ]; then
+    v_steps=200 v2_steps=40 vs_steps=40 c_steps=150 cs_steps=40 interval=20 c_interval=10
+else
+    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1080 cs_steps=220 interval=100 c_interval=20
+fi
+
+echo "== calibration: half-scale runs, 2 ranks, both grids"
+start=$SECONDS
+for grid in table list; do
+    sph 2 "cal_dambreak_s0.5_${grid}" --setup dambreak --scale 0.5 --grid "$grid" \
+        --steps "$c_steps" --interval "$c_interval"
+    sph 2 "cal_still_s0.5_${grid}" --setup still --scale 0.5 --grid "$grid" \
+        --steps "$cs_steps" --interval "$c_interval"
+done
+cal_s=$((SECONDS - start))
+"$build/bin/sphmodel" calibrate --machine "$machine" --runs "$runs"/cal_*.json \
+    --out "$out/model.json"
+
+echo "== predictions"
+predict() { # predict NAME ARGS...
+    local name=$1
+    shift
+    "$build/bin/sphmodel" predict --model "$out/model.json" --threads 1 --interval "$interval" \
+        --out "$out/prediction_$name.json" "$@"
+}
+predict dambreak_s1_table --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 --steps "$v_steps"
+predict dambreak_s1_list --setup dambreak --grid list --scale 1 --ranks 1,2,3 --steps "$v_steps"
+predict dambreak_s2_table --setup dambreak --grid table --scale 2 --ranks 2,4 --steps "$v2_steps"
+predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps "$vs_steps"
+predict still_s1_list --setup still --grid list --scale 1 --ranks 2 --steps "$vs_steps"
+
+echo "== validation runs (configurations calibration never ran)"
+start=$SECONDS
+for r in 1 2 3 4; do
+    sph "$r" "val_dambreak_s1_table_r$r" --setup dambreak --grid table --steps "$v_steps" \
+        --interval "$interval"
+done
+sph 2 val_dambreak_s1_list_r2 --setup dambreak --grid list --steps "$v_steps" --interval "$interval"
+sph 3 val_dambreak_s1_list_r3 --setup dambreak --grid list --steps "$v_steps" --interval "$interval"
+sph 2 val_dambreak_s2_table_r2 --setup dambreak --grid table --scale 2 --steps "$v2_steps" \
+    --interval "$interval"
+sph 4 val_dambreak_s2_table_r4 --setup dambreak --grid table --scale 2 --steps "$v2_steps" \
+    --interval "$interval"
+sph 2 val_still_s1_table_r2 --setup still --grid table --steps "$vs_steps" --interval "$interval"
+sph 3 val_still_s1_table_r3 --setup still --grid table --steps "$vs_steps" --interval "$interval"
+sph 2 val_still_s1_list_r2 --setup still --grid list --steps "$vs_steps" --interval "$interval"
+val_s=$((SECONDS - start))
+
+echo "== validation"
+"$build/bin/sphmodel" validate --prediction "$out"/prediction_*.json --measured "$runs"/val_*.json \
+    --out "$out/validation.json"
+/usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" --validation-s "$val_s"

@@ -1,0 +1,239 @@
+#!/usr/bin/env python3
+"""Plots and validation.md of the SPH runtime model, from the JSON files in one results folder.
+
+    python3 scripts/plot-model.py --dir results/<host> [--calibration-s S --validation-s S]
+
+Reads model.json, prediction_*.json, validation.json and runs/*.json; writes roofline.png,
+scaling.png, workload.png, regressions.png, comm_error.png and validation.md beside them.
+"""
+import argparse
+import glob
+import json
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def load(path):
+    with open(path) as f:
+        return json.load(f)
+
+
+def roofline(model, out):
+    rl = model["roofline"]
+    c = rl["ceilings"]
+    fig, ax = plt.subplots(figsize=(7, 5))
+    xs = [2 ** (k / 4) for k in range(-40, 33)]
+    ax.loglog(xs, [min(c["peak_gflops"], c["stream_triad_GBps"] * x) for x in xs], "k-",
+              label=f"peak {c['peak_gflops']:.0f} GFLOP/s (FMA probe), triad {c['stream_triad_GBps']:.0f} GB/s")
+    ax.axhline(c["dgemm_gflops"], color="gray", ls="--", label=f"DGEMM {c['dgemm_gflops']:.0f} GFLOP/s")
+    ax.axhline(c["peak_gflops_per_core"], color="gray", ls=":", label="peak of one core")
+    oi = rl["operational_intensity_flop_per_byte"]
+    ax.axvline(oi, color="tab:red", ls="--", lw=1,
+               label=f"SPH kernel, no-reuse intensity {oi:.2f} flop/B")
+    ax.axvline(89 / 56, color="tab:purple", ls=":", lw=1, label="thesis 89/56 flop/B")
+    for p in rl["runs"]:
+        ax.plot(oi, p["achieved_gflops"], "o", ms=6,
+                label=f"{p['grid']} {p['ranks']}x{p['threads']}: {p['achieved_gflops']:.2f} GFLOP/s")
+    ax.set_xlabel("operational intensity (flop/byte)")
+    ax.set_ylabel("GFLOP/s")
+    ax.set_title("Roofline: ceilings of this node and the SPH kernel (calibration runs)")
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def scaling(predictions, validation, out):
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
+    measured = {}
+    for r in validation["configurations"]:
+        measured[(r["setup"], r["grid"], r["scale"], r["ranks"])] = r["measured_wall_s"]
+    for p in predictions:
+        q = p["request"]
+        key = f"{q['setup']} s{q['scale']:g} {q['grid']}"
+        ranks = [c["ranks"] for c in p["configurations"]]
+        wall = [c["wall_s"] for c in p["configurations"]]
+        line, = axes[0].plot(ranks, wall, "-", label=f"{key} predicted")
+        mr = [(c["ranks"], measured.get((q["setup"], q["grid"], q["scale"], c["ranks"])))
+              for c in p["configurations"]]
+        mr = [(r, w) for r, w in mr if w is not None]
+        if mr:
+            axes[0].plot([r for r, _ in mr], [w for _, w in mr], "o", color=line.get_color(),
+                         label=f"{key} measured")
+        base = wall[0] * ranks[0]
+        axes[1].plot(ranks, [base / ranks[0] / w for w in wall], "-", color=line.get_color())
+        axes[2].plot(ranks, [base / (r * w) for r, w in zip(ranks, wall)], "-", color=line.get_color())
+        if mr:
+            mb = mr[0][1] * mr[0][0] if mr[0][0] == ranks[0] else None
+            if mb:
+                axes[1].plot([r for r, _ in mr], [mb / ranks[0] / w for _, w in mr], "o", color=line.get_color())
+                axes[2].plot([r for r, _ in mr], [mb / (r * w) for r, w in mr], "o", color=line.get_color())
+    axes[0].set_ylabel("wall time (s)")
+    axes[1].set_ylabel("speed-up vs fewest ranks")
+    axes[2].set_ylabel("parallel efficiency")
+    for ax in axes:
+        ax.set_xlabel("ranks (1 thread each; above 2 they share the 2 cores)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=6)
+    fig.suptitle("Predicted (lines) and measured (dots) wall time, speed-up, efficiency (thesis Fig. 4.9)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def workload(predictions, runs_dir, out):
+    pred = next((p for p in predictions if p["request"]["setup"] == "dambreak"
+                 and p["request"]["scale"] == 1 and p["request"]["grid"] == "table"), None)
+    if pred is None:
+        return
+    cfg = max(pred["configurations"], key=lambda c: c["ranks"])
+    P = cfg["ranks"]
+    run = os.path.join(runs_dir, f"val_dambreak_s1_table_r{P}.json")
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for r in range(P):
+        t = [iv["time_s"] for iv in cfg["intervals"]]
+        f = [iv["ranks"][r]["field"] for iv in cfg["intervals"]]
+        line, = ax.plot(t, f, "-", label=f"rank {r} predicted")
+        if os.path.exists(run):
+            m = load(run)
+            ax.plot([iv["time_s"] for iv in m["intervals"]],
+                    [iv["ranks"][r]["field_mean"] for iv in m["intervals"]], "o", ms=3,
+                    color=line.get_color(), label=f"rank {r} measured")
+    ax.set_xlabel("simulated time (s)")
+    ax.set_ylabel("field particles owned")
+    ax.set_title(f"Workload per rank, dam break scale 1, {P} ranks (thesis Fig. 4.3)\n"
+                 f"predicted from a half-scale trace by Froude similarity")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def regressions(model, runs_dir, out):
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.3))
+    for ax, key, label in ((axes[0], "pairs", "pairs"), (axes[1], "exported", "exports")):
+        xs, ys = [], []
+        for path in sorted(glob.glob(os.path.join(runs_dir, "cal_*.json"))):
+            for iv in load(path)["intervals"]:
+                for r in iv["ranks"]:
+                    if r["field_mean"] > 0:
+                        xs.append(r["field_mean"])
+                        ys.append(r[key])
+        ax.plot(xs, ys, ".", ms=3, label="calibration rank-intervals")
+        hi = max(xs) if xs else 1
+        for setup, laws in model["regressions"].items():
+            if setup == "thesis":
+                continue
+            reg = laws[label]["coefficients"]
+            m, r = reg["m"]["value"], reg["r"]["value"]
+            ax.plot([0, hi], [r, m * hi + r], "-" if setup != "pooled" else ":",
+                    label=f"{setup}: m={m:.4g}, r={r:.4g}, R²={laws[label]['r2']:.3f}")
+        t = model["regressions"]["thesis"][label]
+        ax.plot([0, hi], [t["r"], t["m"] * hi + t["r"]], "k--", label=f"thesis m={t['m']}, r={t['r']}")
+        ax.set_xlabel("field particles of the rank, n")
+        ax.set_ylabel(f"{label} per step")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    fig.suptitle("p(n) = m n + r (thesis Eq. 4.3, Fig. 4.12)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def comm_error(validation, out):
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for r in validation["configurations"]:
+        s = r["comm_series"]
+        if r["ranks"] < 2 or not s:
+            continue
+        name = f"{r['setup']} s{r['scale']:g} {r['grid']} {r['ranks']}r"
+        line, = ax.plot([e["time_s"] for e in s], [100 * e["model_error"] for e in s], "-", label=f"{name} model")
+        if "inline_error" in s[0]:
+            ax.plot([e["time_s"] for e in s], [100 * e.get("inline_error", 0) for e in s], ":",
+                    color=line.get_color(), label=f"{name} inline")
+    ax.axhline(0, color="k", lw=0.8)
+    ax.axhspan(-20, 20, color="green", alpha=0.08, label="±20 % target")
+    ax.set_xlabel("simulated time (s)")
+    ax.set_ylabel("communication prediction error (%)")
+    ax.set_title("Hockney communication prediction error per interval (thesis Fig. 4.11)")
+    ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def markdown(model, validation, args, out):
+    lines = ["# Validation of the SPH runtime model", ""]
+    lines.append(f"Host `{validation.get('host')}`, commit `{validation.get('git_commit')}`, "
+                 f"{validation.get('timestamp')}.")
+    lines.append("")
+    cal = model["calibration_runs"]
+    lines.append("Calibration runs (half scale, 2 ranks x 1 thread): " +
+                 ", ".join(f"{c['setup']} {c['grid']} {c['steps']} steps ({c['wall_s']:.1f} s)" for c in cal) + ".")
+    if args.calibration_s and args.validation_s:
+        lines.append(f"Calibration took {args.calibration_s:.0f} s of wall time, the validation runs it "
+                     f"predicts {args.validation_s:.0f} s: {100 * args.calibration_s / args.validation_s:.0f} %.")
+    lines.append("")
+    lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
+                 "compute | comm | wait | idle | pairs | exports (edge) | exports (regression) |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in validation["configurations"]:
+        ph = r["phases"]
+        pct = lambda v: f"{100 * v:+.1f} %"
+        lines.append(
+            f"| {r['setup']} | {r['grid']} | {r['scale']:g} | {r['ranks']} x {r['threads']}"
+            f"{' (shared)' if r['oversubscribed'] else ''} | {r['steps']} | {r['measured_wall_s']:.2f} | "
+            f"{r['predicted_wall_s']:.2f} | **{pct(r['wall_error'])}** | {pct(ph['compute']['error'])} | "
+            f"{pct(ph['comm']['error'])} | {pct(ph['wait']['error'])} | "
+            f"{pct(ph['idle']['error']) if ph['idle']['measured_s'] > 0 or ph['idle']['predicted_s'] > 0 else '-'} | "
+            f"{pct(r['pairs_per_step']['error'])} | {pct(r['exported_per_step']['error_edge_columns'])} | "
+            f"{pct(r['exported_per_step']['error_regression'])} |")
+    s = validation["summary"]
+    lines.append("")
+    if s["wall_abs_error"]:
+        lines.append(f"Total wall time |error|: median {100 * s['wall_abs_error']['median']:.1f} %, "
+                     f"max {100 * s['wall_abs_error']['max']:.1f} % (targets 5 % and 10 %).")
+    if s["inline_comm_abs_error_per_interval"]:
+        lines.append(f"Communication, inline Hockney prediction: median per-interval |error| "
+                     f"{100 * s['inline_comm_abs_error_per_interval']['median']:.1f} % (target 20 %).")
+    if s["model_comm_abs_error_per_interval"]:
+        lines.append(f"Communication, model prediction from the predicted workload: median per-interval "
+                     f"|error| {100 * s['model_comm_abs_error_per_interval']['median']:.1f} %.")
+    lines.append("")
+    lines.append(f"Roofline: {model['roofline']['verdict']}.")
+    with open(out, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--dir", required=True, help="results folder holding model.json etc.")
+    ap.add_argument("--calibration-s", type=float, default=0.0, help="wall time of calibration runs (s)")
+    ap.add_argument("--validation-s", type=float, default=0.0, help="wall time of validation runs (s)")
+    args = ap.parse_args()
+    d = args.dir
+    try:
+        model = load(os.path.join(d, "model.json"))
+        validation = load(os.path.join(d, "validation.json"))
+        predictions = [load(p) for p in sorted(glob.glob(os.path.join(d, "prediction_*.json")))]
+    except (OSError, json.JSONDecodeError) as e:
+        print(f"plot-model.py: error: {e}", file=sys.stderr)
+        return 2
+    runs = os.path.join(d, "runs")
+    roofline(model, os.path.join(d, "roofline.png"))
+    scaling(predictions, validation, os.path.join(d, "scaling.png"))
+    workload(predictions, runs, os.path.join(d, "workload.png"))
+    regressions(model, runs, os.path.join(d, "regressions.png"))
+    comm_error(validation, os.path.join(d, "comm_error.png"))
+    markdown(model, validation, args, os.path.join(d, "validation.md"))
+    print(f"plots and validation.md written to {d}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

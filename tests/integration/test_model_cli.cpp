@@ -1,0 +1,177 @@
+// sphmodel as a user runs it: calibrate from real short runs, predict, validate; the re-cut
+// against a real 3-rank run; and bad input (exit 2, one line, no file).
+#include "run.hpp"
+
+#include "sphperf/model/workload.hpp"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+using namespace sphperf::testing;
+namespace fs = std::filesystem;
+
+namespace {
+// Shared fixtures, made once: a machine profile from the shipped raw reports, and short
+// half-scale dam-break runs at 2 and 3 ranks with fine intervals.
+struct Fixture {
+    fs::path dir, machine, run2, run3, model;
+    Fixture() {
+        dir = scratch("model_cli");
+        machine = dir / "machine.json";
+        const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/vm/";
+        Run r = run(bin("machine-profile") + " --stream " + vm + "stream.json --dgemm " + vm +
+                    "dgemm.json --pingpong " + vm + "pingpong.json --out " + machine.string());
+        EXPECT_EQ(r.code, 0) << r.err;
+        // The shipped profile is of host "vm": calibrate with --allow-other-host elsewhere.
+        run2 = dir / "run2.json";
+        run3 = dir / "run3.json";
+        for (auto [ranks, path] : {std::pair{2, run2}, std::pair{3, run3}}) {
+            r = run(mpirun(ranks) + bin("sph") +
+                    " --quiet --setup dambreak --scale 0.5 --steps 60 --interval 10 --machine " +
+                    machine.string() + " --report " + path.string());
+            EXPECT_EQ(r.code, 0) << r.err;
+        }
+        model = dir / "model.json";
+        r = run(bin("sphmodel") + " calibrate --allow-other-host --machine " + machine.string() +
+                " --runs " + run2.string() + " " + run3.string() + " --out " + model.string());
+        EXPECT_EQ(r.code, 0) << r.err;
+    }
+};
+const Fixture &fixture() {
+    static const Fixture f;
+    return f;
+}
+} // namespace
+
+TEST(ModelCli, RecutReproducesTheFieldCountsOfARealThreeRankRun) {
+    const auto j = load(fixture().run3);
+    const auto walls = j["wall_columns"].get<std::vector<double>>();
+    ASSERT_FALSE(j["intervals"].empty());
+    for (const auto &iv : j["intervals"]) {
+        const auto slabs =
+            sphperf::model::recut(iv["columns"].get<std::vector<double>>(), walls, 3);
+        for (int r = 0; r < 3; ++r) {
+            EXPECT_EQ(slabs[r].field, iv["ranks"][r]["field"].get<double>())
+                << "rank " << r << " step " << iv["step"];
+            EXPECT_EQ(slabs[r].walls, iv["ranks"][r]["virtual"].get<double>()) << "rank " << r;
+        }
+    }
+}
+
+TEST(ModelCli, CalibratePredictValidate) {
+    const auto &f = fixture();
+    const auto m = load(f.model);
+    expect_envelope(m, "sphmodel-calibration");
+    for (const char *p :
+         {"/regressions/dambreak/pairs/coefficients/m/value",
+          "/regressions/dambreak/exports/coefficients/r/se_pct", "/compute/0/cv_rmse_s",
+          "/roofline/verdict", "/traces/dambreak/columns", "/machine/hockney/classes"})
+        EXPECT_TRUE(m.contains(nlohmann::json::json_pointer(p))) << p;
+    const auto pred = f.dir / "pred.json";
+    sphperf::testing::Run r =
+        run(bin("sphmodel") + " predict --model " + f.model.string() +
+            " --setup dambreak --scale 0.5 --ranks 1,2,3 --steps 60 --interval 10 --out " +
+            pred.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto p = load(pred);
+    ASSERT_EQ(p["configurations"].size(), 3u);
+    for (const auto &c : p["configurations"]) {
+        EXPECT_GT(c["wall_s"].get<double>(), 0);
+        EXPECT_EQ(c["intervals"].size(), 6u);
+    }
+    // The measured 2- and 3-rank runs are matched to their predicted configurations.
+    const auto val = f.dir / "validation.json";
+    r = run(bin("sphmodel") + " validate --prediction " + pred.string() + " --measured " +
+            f.run2.string() + " " + f.run3.string() + " --out " + val.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto v = load(val);
+    EXPECT_EQ(v["configurations"].size(), 2u);
+    EXPECT_TRUE(v["unmatched_runs"].empty());
+    // A bound that no real prediction meets makes validate exit 1, after writing the report.
+    r = run(bin("sphmodel") + " validate --max-error 0 --prediction " + pred.string() +
+            " --measured " + f.run3.string() + " --out " + (f.dir / "v0.json").string());
+    EXPECT_EQ(r.code, 1);
+    EXPECT_TRUE(fs::exists(f.dir / "v0.json"));
+}
+
+TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
+    const auto j = load(fixture().run2);
+    double predicted = 0, messages = 0;
+    for (const auto &iv : j["intervals"])
+        for (const auto &r : iv["ranks"]) {
+            predicted += r["comm_predict_s"].get<double>();
+            messages += r["messages"].get<double>();
+            EXPECT_TRUE(r["timers"].contains("wait_s"));
+            EXPECT_TRUE(r["timers"].contains("pack_s"));
+        }
+    // 2 ranks: each sends a count and a payload per exchange, 3 exchanges per step.
+    EXPECT_EQ(messages, 2 * 60 * 3 * 2);
+    EXPECT_GT(predicted, 0);
+}
+
+struct BadModelInput {
+    const char *name, *args, *expect;
+};
+class ModelBadInputTest : public ::testing::TestWithParam<BadModelInput> {};
+
+TEST_P(ModelBadInputTest, ExitsTwoWithOneLineAndNoFile) {
+    const auto &f = fixture();
+    const auto out = f.dir / (std::string("bad_") + GetParam().name + ".json");
+    fs::remove(out);
+    {
+        std::ofstream(f.dir / "malformed.json") << "{\"benchmark\": \"sph\", ";
+        auto j = load(f.run2);
+        j["intervals"][0]["ranks"][0].erase("field_mean");
+        std::ofstream(f.dir / "missing_key.json") << j.dump();
+        j = load(f.run2);
+        j["intervals"][1]["ranks"][0]["pairs"] = -5;
+        std::ofstream(f.dir / "negative.json") << j.dump();
+    }
+    std::string args = GetParam().args;
+    for (auto [key, value] : {std::pair<std::string, std::string>{"MACHINE", f.machine.string()},
+                              {"MODEL", f.model.string()},
+                              {"RUN", f.run2.string()},
+                              {"DIR", f.dir.string()}})
+        for (std::size_t at; (at = args.find(key)) != std::string::npos;)
+            args.replace(at, key.size(), value);
+    const sphperf::testing::Run r = run(bin("sphmodel") + " " + args + " --out " + out.string());
+    EXPECT_EQ(r.code, 2) << r.out << r.err;
+    EXPECT_EQ(r.err_lines(), 1) << r.err;
+    EXPECT_NE(r.err.find(GetParam().expect), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, ModelBadInputTest,
+    ::testing::Values(
+        BadModelInput{"missing_file", "calibrate --machine MACHINE --runs DIR/nope.json",
+                      "nope.json"},
+        BadModelInput{"malformed", "calibrate --machine MACHINE --runs DIR/malformed.json",
+                      "not valid JSON"},
+        BadModelInput{"wrong_kind", "calibrate --machine MACHINE --runs MACHINE",
+                      "is not a sph report"},
+        BadModelInput{"missing_key",
+                      "calibrate --allow-other-host --machine MACHINE --runs DIR/missing_key.json",
+                      "field_mean"},
+        BadModelInput{"negative",
+                      "calibrate --allow-other-host --machine MACHINE --runs DIR/negative.json",
+                      "pairs"},
+        BadModelInput{"unknown_setup", "predict --model MODEL --setup tsunami --steps 10",
+                      "tsunami"},
+        BadModelInput{"too_many_ranks", "predict --model MODEL --scale 0.5 --ranks 2,99 --steps 10",
+                      "99 ranks exceed"},
+        BadModelInput{"trace_too_short", "predict --model MODEL --scale 0.5 --steps 5000",
+                      "calibration recorded only"},
+        BadModelInput{"nan_scale", "predict --model MODEL --scale nan --steps 10", "nan"},
+        BadModelInput{"no_length", "predict --model MODEL --scale 0.5", "--steps"},
+        BadModelInput{"negative_max_error",
+                      "validate --max-error -1 --prediction MODEL --measured RUN", "-1"}),
+    [](const auto &info) { return std::string(info.param.name); });
+
+TEST(ModelCli, HelpShowsDefaults) {
+    const sphperf::testing::Run r = run(bin("sphmodel") + " predict --help");
+    EXPECT_EQ(r.code, 0);
+    EXPECT_NE(r.out.find("--scale"), std::string::npos);
+    EXPECT_NE(r.out.find("dambreak"), std::string::npos); // the default setup is shown
+}

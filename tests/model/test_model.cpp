@@ -1,0 +1,202 @@
+// The runtime model's pure parts: fits against planted coefficients, the slab re-cut, Froude
+// rescaling, Hockney piece selection, and validation flagging a planted error.
+#include "sphperf/cli.hpp"
+#include "sphperf/model/runtime.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numeric>
+#include <random>
+
+using namespace sphperf;
+using namespace sphperf::model;
+
+TEST(Fit, RecoversPlantedLineAndItsStandardErrors) {
+    // y = 3 + 2 x + N(0, 0.5): the estimates land within 4 standard errors, and the standard
+    // error of the slope is the textbook sigma / sqrt(Sxx).
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0.0, 0.5);
+    std::vector<double> x, y;
+    for (int i = 0; i < 400; ++i) {
+        x.push_back(i * 0.05);
+        y.push_back(3.0 + 2.0 * x.back() + noise(rng));
+    }
+    const LinearFit f = fit_line_mr(x, y);
+    EXPECT_NEAR(f.coefficient("m"), 2.0, 4 * f.se[0]);
+    EXPECT_NEAR(f.coefficient("r"), 3.0, 4 * f.se[1]);
+    const double mean = std::accumulate(x.begin(), x.end(), 0.0) / x.size();
+    double sxx = 0;
+    for (double v : x)
+        sxx += (v - mean) * (v - mean);
+    EXPECT_NEAR(f.se[0], 0.5 / std::sqrt(sxx), 0.1 * 0.5 / std::sqrt(sxx));
+    EXPECT_NEAR(f.rse, 0.5, 0.05);
+    EXPECT_GT(f.r2, 0.99);
+}
+
+TEST(Fit, RefusesTooFewPointsAndDependentTerms) {
+    EXPECT_THROW(fit_line_mr(std::vector<double>{1, 2}, std::vector<double>{1, 2}),
+                 std::invalid_argument);
+    std::vector<std::vector<double>> X{{1, 2}, {2, 4}, {3, 6}, {4, 8}};
+    EXPECT_THROW(fit_linear(X, std::vector<double>{1, 2, 3, 4}, {"a", "b"}), std::invalid_argument);
+}
+
+TEST(Fit, CrossValidationPrefersThePlantedTerms) {
+    // y depends on x1 and x2; leaving x2 out must score worse held out.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(0, 10);
+    std::normal_distribution<double> noise(0, 0.1);
+    std::vector<std::vector<double>> both, one;
+    std::vector<double> y;
+    std::vector<int> groups;
+    for (int i = 0; i < 120; ++i) {
+        const double a = u(rng), b = u(rng);
+        both.push_back({a, b, 1});
+        one.push_back({a, 1});
+        y.push_back(1.5 * a + 0.7 * b + 2 + noise(rng));
+        groups.push_back(i % 4);
+    }
+    EXPECT_LT(cross_validate(both, y, groups), 0.2);
+    EXPECT_GT(cross_validate(one, y, groups), 5 * cross_validate(both, y, groups));
+}
+
+TEST(Workload, RecutFollowsTheAppsSlabsAndEdgeColumns) {
+    // 7 columns on 3 ranks: the app's first_column gives [0,2) [2,4) [4,7).
+    const std::vector<double> fluid{1, 2, 3, 4, 5, 6, 7}, walls{10, 1, 1, 1, 1, 1, 10};
+    const auto s = recut(fluid, walls, 3);
+    ASSERT_EQ(s.size(), 3u);
+    EXPECT_EQ(s[0].begin, 0);
+    EXPECT_EQ(s[1].begin, 2);
+    EXPECT_EQ(s[2].begin, 4);
+    EXPECT_EQ(s[2].end, 7);
+    EXPECT_DOUBLE_EQ(s[0].field, 3);
+    EXPECT_DOUBLE_EQ(s[1].field, 7);
+    EXPECT_DOUBLE_EQ(s[2].field, 18);
+    EXPECT_DOUBLE_EQ(s[2].walls, 12);
+    // Rank 1 sends its column 2 west and column 3 east; receives column 1 and column 4.
+    EXPECT_DOUBLE_EQ(s[1].export_west, 3 + 1);
+    EXPECT_DOUBLE_EQ(s[1].export_east, 4 + 1);
+    EXPECT_DOUBLE_EQ(s[1].ghost, (2 + 1) + (5 + 1));
+    EXPECT_DOUBLE_EQ(s[0].export_west, 0); // the tank wall has no neighbour
+    EXPECT_THROW(recut(fluid, walls, 8), UsageError);
+}
+
+TEST(Workload, FroudeRescalingCarriesASyntheticTrace) {
+    // Source: scale 1, 10 columns of 1 m, column c holds c particles. Target: scale 2 (tank
+    // twice as long), 20 columns of 1 m: target column k covers source [k/2, (k+1)/2), half of
+    // source column k/2, so counts come in equal pairs, and the total is the target's own.
+    std::vector<double> src(10);
+    std::iota(src.begin(), src.end(), 0.0);
+    const double total = 4 * 45.0;
+    const auto out = rescale_columns(src, 1.0, 10.0, 1.0, 20.0, 20, total);
+    ASSERT_EQ(out.size(), 20u);
+    EXPECT_NEAR(std::accumulate(out.begin(), out.end(), 0.0), total, 1e-9);
+    for (int k = 0; k < 20; ++k)
+        EXPECT_NEAR(out[k], 2.0 * (k / 2), 1e-9) << "column " << k;
+    // Times scale with sqrt(s): 0.2 s at scale 2 is 0.2 / sqrt(2) s at scale 1.
+    EXPECT_NEAR(source_time(0.2, 1.0, 2.0), 0.2 / std::sqrt(2.0), 1e-15);
+    EXPECT_NEAR(source_time(0.1, 0.5, 1.0), 0.1 * std::sqrt(0.5), 1e-15);
+}
+
+TEST(Workload, TraceInterpolatesAndRefusesToExtrapolate) {
+    Trace t;
+    t.setup = "dambreak";
+    t.times_s = {0.0, 0.1};
+    t.columns = {{4, 0}, {2, 2}};
+    const auto h = histogram_at(t, 0.05);
+    EXPECT_DOUBLE_EQ(h[0], 3);
+    EXPECT_DOUBLE_EQ(h[1], 1);
+    try {
+        histogram_at(t, 0.2);
+        FAIL() << "no error for a trace too short";
+    } catch (const UsageError &e) {
+        EXPECT_NE(std::string(e.what()).find("0.2 s"), std::string::npos) << e.what();
+    }
+}
+
+namespace {
+nlohmann::json two_piece_profile() {
+    auto piece = [](double a, double b, double lo, double hi) {
+        return nlohmann::json{
+            {"alpha_s", a}, {"beta_s_per_byte", b}, {"first_bytes", lo}, {"last_bytes", hi}};
+    };
+    nlohmann::json fit{{"breakpoint_bytes", 2048},
+                       {"pieces", {piece(1e-7, 1e-10, 1, 2048), piece(2e-6, 2e-10, 4096, 1e7)}}};
+    nlohmann::json slow{{"breakpoint_bytes", 0}, {"pieces", {piece(5e-6, 1e-9, 1, 1e7)}}};
+    nlohmann::json pair = fit;
+    pair["pus"] = {0, 1};
+    pair["locality"] = "same_l3";
+    return {
+        {"hockney", {{"pairs", {pair}}, {"classes", {{"same_l3", fit}, {"other_node", slow}}}}}};
+}
+} // namespace
+
+TEST(Comm, EachMessageIsCostedWithItsOwnPiece) {
+    const CommModel m = CommModel::from_profile(two_piece_profile());
+    EXPECT_NEAR(m.seconds(0, 1, 1000), 1e-7 + 1000 * 1e-10, 1e-15);   // small piece
+    EXPECT_NEAR(m.seconds(1, 0, 17000), 2e-6 + 17000 * 2e-10, 1e-15); // large piece
+    // An unmeasured or unbound placement takes the slowest class, never an optimistic one.
+    EXPECT_NEAR(m.seconds(-1, -1, 1000), 5e-6 + 1000 * 1e-9, 1e-15);
+    EXPECT_NEAR(m.seconds(0, 7, 1000), 5e-6 + 1000 * 1e-9, 1e-15);
+    // A Sendrecv lasts as long as its longer direction; a missing side costs nothing.
+    EXPECT_NEAR(m.sendrecv_seconds(0, 1, 17000, 1, 10), m.seconds(0, 1, 17000), 1e-15);
+    EXPECT_NEAR(m.sendrecv_seconds(0, 1, -1, 1, 10), m.seconds(1, 0, 10), 1e-15);
+    EXPECT_THROW(CommModel::from_profile(nlohmann::json::object()), UsageError);
+}
+
+namespace {
+SphRun measured_run(double wall_s) {
+    SphRun r;
+    r.path = "measured.json";
+    r.config = {"dambreak", "table", "fixed", 1, 0.01, 1e-4, 0.04, 3.22, 100, 7381, 1, 1, 100, 81};
+    r.wall_s = wall_s;
+    IntervalStats iv;
+    iv.step = 100;
+    iv.time_s = 0.01;
+    RankStats rk;
+    rk.steps = 100;
+    rk.pairs = 1000;
+    rk.timers = {{"pairs_s", 0.5}, {"comp_s", 0.5}, {"comm_s", 0}, {"wait_s", 0}};
+    iv.ranks = {rk};
+    r.intervals = {iv};
+    return r;
+}
+nlohmann::json prediction(double wall_s) {
+    nlohmann::json c{
+        {"ranks", 1},
+        {"oversubscribed", false},
+        {"wall_s", wall_s},
+        {"totals", {{"compute_s", wall_s}, {"comm_s", 0}, {"wait_s", 0}, {"idle_s", 0}}},
+        {"per_rank", {{{"pairs_per_step", 1000}, {"exported_per_step", 0}}}},
+        {"intervals", {{{"ranks", {{{"comm_s", 0}, {"exported_regression", 0}}}}}}}};
+    return {{"request",
+             {{"setup", "dambreak"},
+              {"grid", "table"},
+              {"scale", 1},
+              {"delta", 0.01},
+              {"dt", 1e-4},
+              {"steps", 100},
+              {"threads", 1}}},
+            {"configurations", {c}}};
+}
+} // namespace
+
+TEST(Validate, FlagsAPlantedTwentyPercentError) {
+    bool exceeded = false;
+    ValidateOptions strict;
+    strict.max_error = 0.1;
+    auto v = validate({}, {prediction(1.2)}, {measured_run(1.0)}, strict, exceeded);
+    EXPECT_TRUE(exceeded);
+    ASSERT_EQ(v["configurations"].size(), 1u);
+    EXPECT_NEAR(v["configurations"][0]["wall_error"].get<double>(), 0.2, 1e-12);
+    EXPECT_NEAR(v["configurations"][0]["phases"]["compute"]["error"].get<double>(), 0.2, 1e-12);
+    ValidateOptions loose;
+    loose.max_error = 0.25;
+    validate({}, {prediction(1.2)}, {measured_run(1.0)}, loose, exceeded);
+    EXPECT_FALSE(exceeded);
+    // A run no prediction covers is listed, not silently dropped.
+    auto other = measured_run(1.0);
+    other.config.ranks = 5;
+    v = validate({}, {prediction(1.2)}, {other}, loose, exceeded);
+    EXPECT_EQ(v["unmatched_runs"].size(), 1u);
+}
