@@ -52,12 +52,12 @@ std::vector<Point> points_of(const SphRun &run, int index) {
     return out;
 }
 
-json regression(const std::vector<Point> &pts, double Point::*y) {
+template <class Y> json regression(const std::vector<Point> &pts, Y y) {
     std::vector<double> n, v;
     for (const auto &p : pts)
         if (p.work.field > 0) { // the linear law is for ranks holding field particles
             n.push_back(p.work.field);
-            v.push_back(p.*y);
+            v.push_back(y(p));
         }
     if (n.size() < 3)
         throw UsageError("the calibration runs give " + std::to_string(n.size()) +
@@ -170,12 +170,10 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
     const double intensity = flops / bytes;
     json points = json::array();
     for (const auto &r : runs) {
-        double interactions = 0, compute = 0;
+        double interactions = 0;
         for (const auto &iv : r.intervals)
-            for (const auto &rk : iv.ranks) {
+            for (const auto &rk : iv.ranks)
                 interactions += rk.interactions * rk.steps;
-                compute = std::max(compute, 0.0);
-            }
         // Achieved rates over the run's wall time on all its ranks.
         const double gflops = r.wall_s > 0 ? interactions * flops / r.wall_s * 1e-9 : 0.0;
         const double gbps = r.wall_s > 0 ? interactions * bytes / r.wall_s * 1e-9 : 0.0;
@@ -312,13 +310,11 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     // The thesis' laws, per setup (a still tank packs its particles differently from a
     // collapsing dam) and pooled; interactions (ordered pairs acting on an owned particle)
     // drive the compute cost.
-    auto laws = [](std::vector<Point> pts) {
-        json j{{"pairs", regression(pts, &Point::pairs)},
-               {"exports", regression(pts, &Point::exported)}};
-        for (auto &p : pts)
-            p.pairs = p.work.interactions;
-        j["interactions"] = regression(pts, &Point::pairs);
-        return j;
+    auto laws = [](const std::vector<Point> &pts) {
+        return json{
+            {"pairs", regression(pts, [](const Point &p) { return p.pairs; })},
+            {"exports", regression(pts, [](const Point &p) { return p.exported; })},
+            {"interactions", regression(pts, [](const Point &p) { return p.work.interactions; })}};
     };
     json regs = json::object();
     for (const auto &[setup, pts] : by_setup)
