@@ -95,4 +95,122 @@ double CommModel::sendrecv_seconds(int pu, int pu_out, double out, int pu_in, do
     return std::max(t_out, t_in);
 }
 
+ExchangeModel ExchangeModel::from_profile(const nlohmann::json &machine) {
+    ExchangeModel m;
+    if (!machine.contains("exchange"))
+        return m;
+    const auto &e = machine["exchange"];
+    if (!e.is_array())
+        throw UsageError("machine profile \"exchange\" is not an array of exchange reports");
+    for (const auto &r : e) {
+        ExchangeSet s;
+        const std::string where = "machine profile exchange";
+        s.ranks = static_cast<int>(number(r, "ranks", where));
+        s.cores = static_cast<int>(number(r, "cores", where));
+        if (s.ranks < 2 || s.cores < 1)
+            throw UsageError(where + " has " + std::to_string(s.ranks) + " ranks on " +
+                             std::to_string(s.cores) + " cores (expected >= 2 and >= 1)");
+        if (!r.contains("points") || !r["points"].is_array() || r["points"].empty())
+            throw UsageError(where + " at " + std::to_string(s.ranks) +
+                             " ranks lacks a non-empty \"points\" array");
+        for (const auto &p : r["points"]) {
+            ExchangePoint x;
+            x.gap_s = number(p, "gap_s_mean", where + "/points");
+            x.bytes = number(p, "payload_bytes", where + "/points");
+            x.mean_s =
+                number(p.value("shift", nlohmann::json()), "mean_s", where + "/points/shift");
+            x.median_s = p["shift"].value("median_s", x.mean_s);
+            if (p.contains("round_overhead") && p["round_overhead"].is_number())
+                x.overhead = p["round_overhead"].get<double>();
+            if (x.gap_s < 0 || x.bytes <= 0 || x.mean_s < 0)
+                throw UsageError(where + " has a point with a negative gap or cost, or no payload");
+            s.points.push_back(x);
+        }
+        std::sort(s.points.begin(), s.points.end(), [](const auto &a, const auto &b) {
+            return a.bytes != b.bytes ? a.bytes < b.bytes : a.gap_s < b.gap_s;
+        });
+        m.sets_.push_back(std::move(s));
+    }
+    return m;
+}
+
+const ExchangeSet &ExchangeModel::set_for(int ranks, int threads, int cores) const {
+    if (sets_.empty())
+        throw UsageError("the machine profile has no exchange measurements");
+    const double load = static_cast<double>(ranks) * threads / cores;
+    const ExchangeSet *best = &sets_.front();
+    auto distance = [&](const ExchangeSet &s) {
+        // Within the cores one rank count is as good as another: prefer the largest measured.
+        if (load <= 1 && s.load() <= 1)
+            return -s.load() * 1e-6;
+        return std::abs(std::log(s.load()) - std::log(load));
+    };
+    for (const auto &s : sets_)
+        if (distance(s) < distance(*best))
+            best = &s;
+    return *best;
+}
+
+namespace {
+// Linear interpolation of y over x (sorted), held constant outside.
+double interpolate(const std::vector<std::pair<double, double>> &xy, double x) {
+    if (x <= xy.front().first)
+        return xy.front().second;
+    for (std::size_t i = 1; i < xy.size(); ++i)
+        if (x <= xy[i].first) {
+            const auto [x0, y0] = xy[i - 1];
+            const auto [x1, y1] = xy[i];
+            return x1 > x0 ? y0 + (y1 - y0) * (x - x0) / (x1 - x0) : y1;
+        }
+    return xy.back().second;
+}
+
+constexpr double smallest_gap_s = 1e-7; // gaps below a tenth of a microsecond are the same
+
+// y(gap) of one payload, interpolated in log(gap).
+template <class Get>
+double along_gap(const std::vector<ExchangePoint> &pts, double bytes, double gap_s, Get get) {
+    std::vector<std::pair<double, double>> xy;
+    for (const auto &p : pts)
+        if (p.bytes == bytes)
+            xy.emplace_back(std::log(std::max(p.gap_s, smallest_gap_s)), get(p));
+    std::sort(xy.begin(), xy.end());
+    return interpolate(xy, std::log(std::max(gap_s, smallest_gap_s)));
+}
+} // namespace
+
+double ExchangeModel::shift_seconds(const ExchangeSet &set, double gap_s, double bytes) {
+    std::vector<double> sizes;
+    for (const auto &p : set.points)
+        if (sizes.empty() || sizes.back() != p.bytes)
+            sizes.push_back(p.bytes);
+    auto at = [&](double b) {
+        return along_gap(set.points, b, gap_s, [](const ExchangePoint &p) { return p.mean_s; });
+    };
+    if (sizes.size() == 1 || bytes <= sizes.front())
+        return at(sizes.front());
+    std::size_t hi = 1;
+    while (hi + 1 < sizes.size() && bytes > sizes[hi])
+        ++hi;
+    const double b0 = sizes[hi - 1], b1 = sizes[hi];
+    const double y0 = at(b0), y1 = at(b1);
+    // Beyond the largest payload the last slope goes on (never downward).
+    const double slope = std::max(0.0, (y1 - y0) / (b1 - b0));
+    return bytes <= b1 ? y0 + (y1 - y0) * (bytes - b0) / (b1 - b0) : y1 + slope * (bytes - b1);
+}
+
+double ExchangeModel::round_overhead(const ExchangeSet &set, double gap_s) {
+    if (set.load() <= 1)
+        return 1.0;
+    // Every payload's points together: the overhead hardly depends on the payload.
+    std::vector<std::pair<double, double>> xy;
+    for (const auto &p : set.points)
+        if (p.overhead > 0)
+            xy.emplace_back(std::log(std::max(p.gap_s, smallest_gap_s)), p.overhead);
+    if (xy.empty())
+        return 1.0;
+    std::sort(xy.begin(), xy.end());
+    return std::max(1.0, interpolate(xy, std::log(std::max(gap_s, smallest_gap_s))));
+}
+
 } // namespace sphperf::model

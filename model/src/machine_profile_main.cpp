@@ -1,5 +1,6 @@
 // machine-profile: merges the stream, dgemm and pingpong reports into machine.json.
 #include "sphperf/cli.hpp"
+#include "sphperf/model/comm_model.hpp"
 #include "sphperf/model/profile.hpp"
 #include "sphperf/report.hpp"
 #include "sphperf/topology.hpp"
@@ -12,7 +13,7 @@ using namespace sphperf;
 
 struct Config {
     std::filesystem::path stream, dgemm, pingpong, out;
-    std::vector<std::filesystem::path> dgemm_alternatives;
+    std::vector<std::filesystem::path> dgemm_alternatives, exchanges;
 };
 
 int run(int argc, char **argv) {
@@ -25,6 +26,8 @@ int run(int argc, char **argv) {
     app.add_option("--dgemm-alt", cfg.dgemm_alternatives,
                    "dgemm reports run with other OpenBLAS core types");
     app.add_option("--pingpong", cfg.pingpong, "pingpong report (JSON)")->required();
+    app.add_option("--exchange", cfg.exchanges,
+                   "exchange reports (JSON), one per rank count, for the app's halo exchange");
     app.add_option("--out", cfg.out, "machine profile to write (JSON)")->required();
     parse_cli(app, argc, argv);
 
@@ -37,8 +40,16 @@ int run(int argc, char **argv) {
     std::vector<nlohmann::json> alts;
     for (const auto &a : cfg.dgemm_alternatives)
         alts.push_back(model::load_report(a, "dgemm"));
-    const auto profile =
-        model::build_profile(report_header("machine", topo), stream, dgemm, pingpong, alts);
+    std::vector<nlohmann::json> exchanges;
+    for (const auto &e : cfg.exchanges)
+        exchanges.push_back(model::load_report(e, "exchange"));
+    nlohmann::json profile;
+    try {
+        profile = model::build_profile(report_header("machine", topo), stream, dgemm, pingpong,
+                                       alts, exchanges);
+    } catch (const nlohmann::json::exception &e) {
+        throw UsageError(std::string("a report lacks a field the profile needs: ") + e.what());
+    }
     sink.write(profile);
 
     std::printf("machine profile of %s (%s, %d cores)\n",
@@ -60,6 +71,12 @@ int run(int argc, char **argv) {
         std::printf("  MPI %-14s alpha %.3f us, 1/beta %.2f GB/s (%d pairs, max avg)\n",
                     name.c_str(), c["alpha_s_max"].get<double>() * 1e6,
                     1e-9 / c["beta_s_per_byte_max"].get<double>(), c["pairs"].get<int>());
+    const auto exchange = model::ExchangeModel::from_profile(profile);
+    for (const auto &set : exchange.sets())
+        std::printf("  halo exchange, %d ranks: 1 KiB shift after 1 / 10 ms of compute %.1f / "
+                    "%.1f us (mean)\n",
+                    set.ranks, model::ExchangeModel::shift_seconds(set, 1e-3, 1024) * 1e6,
+                    model::ExchangeModel::shift_seconds(set, 1e-2, 1024) * 1e6);
     std::printf("written %s\n", cfg.out.string().c_str());
     return 0;
 }

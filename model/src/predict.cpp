@@ -15,10 +15,12 @@ using nlohmann::json;
 constexpr int samples_per_interval = 4; // workload sampled at interval quarter-midpoints
 constexpr double count_bytes = sizeof(int);
 constexpr double density_bytes = sizeof(double);
+constexpr double shifts_per_step = 3; // migration, ghosts, density refresh
 
 struct Costs {
     LinearFit pairs, exports, interactions, compute, cell_moves;
     CommModel comm;
+    ExchangeModel exchange; // empty: the shifts are costed message by message with Hockney
     double record_bytes = 72;
     int cores = 1;
 };
@@ -51,6 +53,7 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             throw UsageError("the model has no cell-move fit for grid " + grid);
         c.cell_moves = LinearFit::from_json(model.at("cell_moves").at(grid), "model cell_moves");
         c.comm = CommModel::from_profile(model.at("machine"));
+        c.exchange = ExchangeModel::from_profile(model.at("machine"));
         c.record_bytes = model.at("record_bytes").get<double>();
         c.cores = model.at("machine").at("cores").get<int>();
     } catch (const json::exception &e) {
@@ -76,7 +79,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
     const bool shared = P * threads > c.cores;
     auto pu = [&](int r) { return shared || r < 0 || r >= P ? -1 : r * threads; };
     std::vector<RankStep> out(static_cast<std::size_t>(P));
-    double longest = 0, demand = 0;
+    double slowest = 0, demand = 0;
     for (int r = 0; r < P; ++r) {
         const SlabLoad &l = loads[static_cast<std::size_t>(r)];
         RankStep &s = out[static_cast<std::size_t>(r)];
@@ -99,35 +102,50 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
         for (const auto &t : c.compute.terms)
             x.push_back(w.value(t));
         s.compute_s = std::max(0.0, c.compute.predict(x));
+        slowest = std::max(slowest, s.compute_s);
+        demand += s.compute_s * threads;
+    }
+    // The compute that precedes each of the three shifts of a step: on this kind of machine
+    // it decides what a shift costs (exchange benchmark). Above the core count the ranks
+    // take turns, so a step spans at least the summed demand per core.
+    const double busy = shared ? std::max(slowest, demand / c.cores) : slowest;
+    const double gap = busy / shifts_per_step;
+    const ExchangeSet *set =
+        c.exchange.empty() ? nullptr : &c.exchange.set_for(P, threads, c.cores);
+    double longest = 0;
+    for (int r = 0; r < P && P > 1; ++r) {
+        const SlabLoad &l = loads[static_cast<std::size_t>(r)];
+        RankStep &s = out[static_cast<std::size_t>(r)];
         // Three exchanges (migration, ghosts, density), each an eastward then a westward shift
         // of a count and a payload; migration payloads are taken as empty (a few particles).
-        if (P > 1) {
-            const bool west = r > 0, east = r + 1 < P;
-            const double in_from_west =
-                west ? loads[static_cast<std::size_t>(r - 1)].export_east : -1;
-            const double in_from_east =
-                east ? loads[static_cast<std::size_t>(r + 1)].export_west : -1;
+        const bool west = r > 0, east = r + 1 < P;
+        const double in_from_west = west ? loads[static_cast<std::size_t>(r - 1)].export_east : -1;
+        const double in_from_east = east ? loads[static_cast<std::size_t>(r + 1)].export_west : -1;
+        auto exchange = [&](double per_particle) {
+            if (set) {
+                const double most =
+                    std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
+                return ExchangeModel::shift_seconds(*set, gap, most * per_particle);
+            }
             auto shift = [&](double out_e, double in_w, double out_w, double in_e) {
                 return c.comm.sendrecv_seconds(pu(r), pu(r + 1), east ? out_e : -1, pu(r - 1),
                                                west ? in_w : -1) +
                        c.comm.sendrecv_seconds(pu(r), pu(r - 1), west ? out_w : -1, pu(r + 1),
                                                east ? in_e : -1);
             };
-            auto exchange = [&](double per_particle) {
-                return shift(count_bytes, count_bytes, count_bytes, count_bytes) +
-                       shift(l.export_east * per_particle,
-                             std::max(0.0, in_from_west) * per_particle,
-                             l.export_west * per_particle,
-                             std::max(0.0, in_from_east) * per_particle);
-            };
-            s.comm_s = exchange(0.0) + exchange(c.record_bytes) + exchange(density_bytes);
-        }
+            return shift(count_bytes, count_bytes, count_bytes, count_bytes) +
+                   shift(l.export_east * per_particle, std::max(0.0, in_from_west) * per_particle,
+                         l.export_west * per_particle, std::max(0.0, in_from_east) * per_particle);
+        };
+        s.comm_s = exchange(0.0) + exchange(c.record_bytes) + exchange(density_bytes);
         longest = std::max(longest, s.compute_s + s.comm_s);
-        demand += s.compute_s * threads;
     }
-    // The exchanges are blocking: every rank's step lasts as long as the slowest. Above the
-    // core count the ranks take turns: the step lasts at least the summed demand per core.
-    step_s = shared ? std::max(longest, demand / c.cores) : longest;
+    longest = std::max(longest, slowest);
+    // The exchanges are blocking: every rank's step lasts as long as the slowest. Time-sharing
+    // costs more than the demand per core (switches, ranks waiting for a descheduled
+    // neighbour): the exchange benchmark's round overhead at this rank count and gap.
+    const double overhead = set ? ExchangeModel::round_overhead(*set, gap) : 1.0;
+    step_s = shared ? std::max(longest, demand / c.cores * overhead) : longest;
     for (auto &s : out) {
         s.wait_s = std::max(0.0, step_s - s.compute_s - s.comm_s);
         s.idle_s = s.field > 0 ? 0.0 : step_s;

@@ -77,7 +77,8 @@ nlohmann::json hockney_section(const nlohmann::json &pingpong) {
 
 nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream,
                              const nlohmann::json &dgemm, const nlohmann::json &pingpong,
-                             const std::vector<nlohmann::json> &dgemm_alternatives) {
+                             const std::vector<nlohmann::json> &dgemm_alternatives,
+                             const std::vector<nlohmann::json> &exchanges) {
     using ptr = nlohmann::json::json_pointer;
     nlohmann::json p = std::move(header);
     const double peak = require_number(dgemm, ptr("/peak_probe/all_cores_gflops"), "dgemm");
@@ -117,6 +118,17 @@ nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream
     p["beta_matrix_s_per_byte"] = pingpong.at("beta_matrix_s_per_byte");
     p["comm_classes"] = pingpong.value("classes", nlohmann::json::object());
     p["hockney"] = hockney_section(pingpong);
+    if (!exchanges.empty()) {
+        p["exchange"] = nlohmann::json::array();
+        for (const auto &e : exchanges)
+            p["exchange"].push_back({{"ranks", e.at("ranks")},
+                                     {"cores", e.at("cores")},
+                                     {"oversubscribed", e.at("oversubscribed")},
+                                     {"timestamp", e.value("timestamp", "")},
+                                     {"config", e.value("config", nlohmann::json())},
+                                     {"points", e.at("points")}});
+        ExchangeModel::from_profile(p); // refuses a malformed report here, not in a later run
+    }
     p["timestamps"] = {{"stream", stream.value("timestamp", "")},
                        {"dgemm", dgemm.value("timestamp", "")},
                        {"pingpong", pingpong.value("timestamp", "")},

@@ -1,5 +1,7 @@
 #include "sphperf/sph/domain.hpp"
 
+#include "sphperf/timer.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -91,7 +93,7 @@ void Domain::sendrecv(const void *out, int out_bytes, int dest, void *in, int in
         t = to(out_bytes);
     if (src != MPI_PROC_NULL && from)
         t = std::max(t, from(in_bytes));
-    tally_.predicted_s += t;
+    shift_hockney_s_ += t;
 }
 
 template <class T>
@@ -102,6 +104,10 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     // and receives at once, so no chain forms across ranks; MPI_PROC_NULL makes the tank
     // edges no-ops.
     wait_for_neighbours(tag);
+    // The compute since the last shift decides what the next one costs on this machine.
+    const double start = wall_seconds();
+    const double gap = last_shift_end_s_ > 0 ? start - last_shift_end_s_ : 0.0;
+    shift_hockney_s_ = 0;
     Received<T> in;
     auto one_way = [&](int dest, int src, const std::vector<T> &out, std::vector<T> &into) {
         int n_out = static_cast<int>(out.size()), n_in = 0;
@@ -112,6 +118,12 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     };
     one_way(east_, west_, to_east, in.from_west);
     one_way(west_, east_, to_west, in.from_east);
+    last_shift_end_s_ = wall_seconds();
+    const double payload =
+        static_cast<double>(sizeof(T) * std::max({to_east.size(), to_west.size(),
+                                                  in.from_west.size(), in.from_east.size()}));
+    tally_.hockney_s += shift_hockney_s_;
+    tally_.predicted_s += shift_cost_ ? shift_cost_(gap, payload) : shift_hockney_s_;
     return in;
 }
 

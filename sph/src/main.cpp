@@ -39,8 +39,8 @@ Config parse(int argc, char **argv) {
     app.add_option("--interval", cfg.interval, "Steps per report interval");
     app.add_option("--report", cfg.report, "Write the JSON report to this file");
     app.add_option("--machine", cfg.machine,
-                   "machine.json: record per interval and rank the Hockney prediction of the "
-                   "messages actually sent (comm_predict_s)")
+                   "machine.json: record per interval and rank the predicted time of the messages "
+                   "actually sent (comm_predict_s; comm_hockney_s by ping-pong alone)")
         ->check(CLI::ExistingFile);
     app.add_option("--vtk", cfg.vtk_dir, "Write ParaView snapshots (.vtu + sph.pvd) here");
     app.add_option("--vtk-every", cfg.vtk_every, "Steps between snapshots");
@@ -98,11 +98,21 @@ int bound_pu() {
     return set.weight() > 0 && set.weight() < topo.pus() ? set.first() : -1;
 }
 
-// Each message to a neighbour is costed with the link between the two ranks' units.
+// Each message to a neighbour is costed with the link between the two ranks' units (Hockney);
+// each shift, when the profile has exchange measurements, as the exchange benchmark saw it at
+// this rank count and after the compute that preceded it.
 void attach_message_costs(Domain &domain, const std::filesystem::path &machine,
-                          const std::vector<int> &pus) {
-    auto comm = std::make_shared<model::CommModel>(
-        model::CommModel::from_profile(model::load_report(machine, "machine")));
+                          const std::vector<int> &pus, int threads) {
+    const auto profile = model::load_report(machine, "machine");
+    auto comm = std::make_shared<model::CommModel>(model::CommModel::from_profile(profile));
+    const auto exchange = model::ExchangeModel::from_profile(profile);
+    if (!exchange.empty()) {
+        const auto set = std::make_shared<model::ExchangeSet>(
+            exchange.set_for(domain.ranks(), threads, Topology().cores()));
+        domain.attach_shift_cost([set](double gap_s, double bytes) {
+            return model::ExchangeModel::shift_seconds(*set, gap_s, bytes);
+        });
+    }
     const int me = pus[static_cast<std::size_t>(domain.rank())];
     auto cost_to = [&](int neighbour) -> MessageCost {
         if (neighbour == MPI_PROC_NULL)
@@ -154,7 +164,7 @@ int run(int argc, char **argv, int rank, int ranks) {
     Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
     const std::vector<int> pus = domain.gather_int(bound_pu());
     if (cfg.machine)
-        attach_message_costs(domain, *cfg.machine, pus);
+        attach_message_costs(domain, *cfg.machine, pus, omp_get_max_threads());
     RunRecord rec = cfg.grid == GridKind::list ? Simulation<CellList>(cfg, geo, domain).run()
                                                : Simulation<CellTable>(cfg, geo, domain).run();
     rec.placement_pus = pus;

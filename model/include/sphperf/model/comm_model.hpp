@@ -43,6 +43,38 @@ private:
     std::size_t slowest_ = 0;
 };
 
+// The app's halo exchange as the `exchange` benchmark measured it (machine.json "exchange"):
+// the mean cost of one shift (handshake excluded: counts and payloads both ways) by the gap of
+// compute before it and the payload, per rank count, and the round overhead of time-sharing.
+// The mean, not the median: the model predicts sums and the cost has a heavy tail.
+struct ExchangePoint {
+    double gap_s = 0, bytes = 0, mean_s = 0, median_s = 0, overhead = 0; // overhead 0: unknown
+};
+struct ExchangeSet {
+    int ranks = 0, cores = 0;
+    std::vector<ExchangePoint> points;
+    double load() const { return static_cast<double>(ranks) / cores; }
+};
+
+class ExchangeModel {
+public:
+    // Reads machine.json's "exchange" section; none gives an empty model.
+    static ExchangeModel from_profile(const nlohmann::json &machine);
+    bool empty() const { return sets_.empty(); }
+    // The measured rank count nearest in load (ranks x threads / cores) to the one asked for.
+    const ExchangeSet &set_for(int ranks, int threads, int cores) const;
+    // Mean seconds of one shift after `gap_s` of compute, carrying `bytes` per payload:
+    // log-linear in the gap between measured gaps (held at the ends), linear in the payload.
+    static double shift_seconds(const ExchangeSet &set, double gap_s, double bytes);
+    // Round time over the time-sharing bound (>= 1 when measured), at that gap; 1 when the set
+    // is not oversubscribed or has no figure.
+    static double round_overhead(const ExchangeSet &set, double gap_s);
+    const std::vector<ExchangeSet> &sets() const { return sets_; }
+
+private:
+    std::vector<ExchangeSet> sets_;
+};
+
 // The JSON form of a fit (pieces + breakpoint), as machine.json stores it, and back.
 nlohmann::json to_json(const PiecewiseFit &fit);
 PiecewiseFit piecewise_from_json(const nlohmann::json &j, const std::string &where);

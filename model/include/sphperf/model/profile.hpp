@@ -13,9 +13,11 @@ namespace sphperf::model {
 nlohmann::json load_report(const std::filesystem::path &path, std::string_view benchmark);
 
 // `header` is the envelope of the profile itself (schema, commit, host, topology).
-// `dgemm_alternatives` are DGEMM reports run with another OpenBLAS core type (may be empty).
+// `dgemm_alternatives` are DGEMM reports run with another OpenBLAS core type (may be empty);
+// `exchanges` are exchange reports, one per rank count (may be empty).
 nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream,
                              const nlohmann::json &dgemm, const nlohmann::json &pingpong,
-                             const std::vector<nlohmann::json> &dgemm_alternatives);
+                             const std::vector<nlohmann::json> &dgemm_alternatives,
+                             const std::vector<nlohmann::json> &exchanges = {});
 
 } // namespace sphperf::model

@@ -36,14 +36,18 @@ struct ExchangeCounts {
     std::size_t sent = 0, received = 0;
 };
 
-// What this rank sent since the last take_tally(): messages, payload bytes, and the Hockney
-// prediction of their transfer (the thesis' T_COMM_PREDICT), when a cost model is attached.
+// What this rank sent since the last take_tally(): messages, payload bytes, and, when costs
+// are attached, the predicted time of their transfer: per message by ping-pong Hockney (the
+// thesis' T_COMM_PREDICT), and per shift by the exchange benchmark (falls back to Hockney).
 struct CommTally {
-    double messages = 0, bytes = 0, predicted_s = 0;
+    double messages = 0, bytes = 0, hockney_s = 0, predicted_s = 0;
 };
 
 // One-way time of a message of `bytes` to or from a neighbour (west or east).
 using MessageCost = std::function<double(double bytes)>;
+// Time of one whole shift (counts and payloads both ways) after `gap_s` of compute since the
+// previous one, with payloads of `bytes`.
+using ShiftCost = std::function<double(double gap_s, double bytes)>;
 
 class Domain {
 public:
@@ -57,6 +61,7 @@ public:
         cost_west_ = std::move(west);
         cost_east_ = std::move(east);
     }
+    void attach_shift_cost(ShiftCost c) { shift_cost_ = std::move(c); }
     CommTally take_tally() { return std::exchange(tally_, CommTally{}); }
     int west() const { return west_; }
     int east() const { return east_; }
@@ -102,6 +107,9 @@ private:
                   int tag);
     PhaseTimers *timers_ = nullptr;
     MessageCost cost_west_, cost_east_;
+    ShiftCost shift_cost_;
+    double last_shift_end_s_ = 0; // when this rank's previous shift ended (wall clock)
+    double shift_hockney_s_ = 0;  // Hockney prediction of the current shift's messages
     CommTally tally_;
     std::vector<std::uint32_t> export_west_, export_east_; // indices sent by the last exchange
     std::size_t ghosts_begin_ = 0, ghosts_from_west_ = 0;  // where received ghosts landed

@@ -26,10 +26,11 @@ struct RankInterval {
     double field_mean = 0;     // fluid particles owned, mean over the interval's steps
     double messages = 0;       // MPI messages sent, total (counts and payloads)
     double message_bytes = 0;  // their payload bytes, total
-    double comm_predict_s = 0; // Hockney prediction of those transfers (sph --machine), total
+    double comm_predict_s = 0; // predicted time of those transfers (sph --machine), total
+    double comm_hockney_s = 0; // ... by ping-pong Hockney alone (thesis T_COMM_PREDICT)
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
 
-    static constexpr std::size_t fields = 16 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 17 + static_cast<std::size_t>(Phase::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

@@ -285,6 +285,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         acc_.messages += tally.messages;
         acc_.message_bytes += tally.bytes;
         acc_.comm_predict_s += tally.predicted_s;
+        acc_.comm_hockney_s += tally.hockney_s;
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)
             acc_.timers[k] += step_timers_.values()[k];
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)
