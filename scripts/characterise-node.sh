@@ -46,10 +46,12 @@ ranks=$(nproc)
 stream_args=()
 dgemm_args=()
 pingpong_args=()
+exchange_args=()
 if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
     stream_args=(--size 2000000 --reps 3)
     dgemm_args=(--sizes 300 --reps 2 --probe-reps 1)
     pingpong_args=(--max-bytes 65536 --max-samples 50)
+    exchange_args=(--gaps-us 0,1000,10000 --payload-bytes 64,4096 --seconds-per-point 0.05)
 fi
 
 echo "== STREAM"
@@ -71,9 +73,22 @@ echo "== ping-pong on $ranks ranks"
 bash "$root/scripts/mpirun.sh" -n "$ranks" "$build/bin/pingpong" "${pingpong_args[@]}" \
     --json "$work/pingpong.json"
 
+# The app's halo exchange at 2 ranks, at the core count and above it (time-sharing), so the
+# model knows what a shift costs after compute at every load it predicts.
+cores=$(nproc)
+exchanges=()
+for n in $(printf '%s\n' 2 "$cores" $((cores + cores / 2)) $((2 * cores)) | sort -nu); do
+    [ "$n" -ge 2 ] || continue
+    echo "== halo exchange on $n ranks"
+    bash "$root/scripts/mpirun.sh" -n "$n" "$build/bin/exchange" "${exchange_args[@]}" --quiet \
+        --json "$work/exchange_r$n.json"
+    exchanges+=("$work/exchange_r$n.json")
+done
+
 mkdir -p "$out"
 "$build/bin/machine-profile" --stream "$work/stream.json" --dgemm "$work/dgemm.json" \
-    "${alts[@]}" --pingpong "$work/pingpong.json" --out "$work/machine.json"
+    "${alts[@]}" --pingpong "$work/pingpong.json" --exchange "${exchanges[@]}" \
+    --out "$work/machine.json"
 cp "$work"/*.json "$out/"
 
 if [ "$model" -eq 0 ]; then

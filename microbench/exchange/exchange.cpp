@@ -51,14 +51,14 @@ Config parse(int argc, char **argv) {
     app.add_option("--gaps-us", cfg.gaps_us,
                    "Work between exchanges, in microseconds of one rank "
                    "running alone")
-        ->check(CLI::NonNegativeNumber & CLI::Range(0.0, 1e6))
+        ->check(Finite & CLI::Range(0.0, 1e6))
         ->delimiter(',');
     app.add_option("--payload-bytes", cfg.payload_bytes, "Payload of each Sendrecv (bytes)")
         ->check(CLI::Range(1, 1 << 26))
         ->delimiter(',');
     app.add_option("--seconds-per-point", cfg.seconds_per_point,
                    "Time spent per (gap, payload) point, about")
-        ->check(CLI::Range(1e-3, 600.0));
+        ->check(Finite & CLI::Range(1e-3, 600.0));
     app.add_option("--min-rounds", cfg.min_rounds, "Exchanges timed per point at least")
         ->check(CLI::Range(5, 1000000));
     app.add_option("--max-rounds", cfg.max_rounds, "Exchanges timed per point at most")

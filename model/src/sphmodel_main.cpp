@@ -14,17 +14,6 @@ namespace {
 using namespace sphperf;
 using namespace sphperf::model;
 
-// CLI11's number validators let NaN and inf through: refuse them too.
-const CLI::Validator Finite(
-    [](const std::string &s) {
-        try {
-            const double v = std::stod(s);
-            return std::isfinite(v) ? std::string() : "value " + s + " is not a finite number";
-        } catch (const std::exception &) {
-            return "value " + s + " is not a number";
-        }
-    },
-    "FINITE");
 
 struct Options {
     std::filesystem::path machine, model, out;

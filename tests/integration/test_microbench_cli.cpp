@@ -92,20 +92,67 @@ TEST(PingpongCli, TwoAndThreeRanks) {
     }
 }
 
+const std::string tiny_exchange =
+    " --gaps-us 0,200 --payload-bytes 64,1024 --seconds-per-point 0.01 --min-rounds 5 --quiet";
+
+// The app's shift as a benchmark: every (payload, gap) point, mean beside median, at 2 and 3
+// ranks (3 is above this machine's cores: the round overhead is reported); 1 rank is refused.
+TEST(ExchangeCli, OneTwoAndThreeRanks) {
+    for (int ranks : {1, 2, 3}) {
+        const auto dir = scratch("exchange" + std::to_string(ranks));
+        const auto out = dir / "e.json";
+        const auto r = run(mpirun(ranks) + bin("exchange") + tiny_exchange + " --json " +
+                           out.string());
+        if (ranks == 1) {
+            EXPECT_EQ(r.code, 2);
+            EXPECT_NE(r.err.find("at least 2 MPI ranks"), std::string::npos) << r.err;
+            EXPECT_FALSE(fs::exists(out));
+            continue;
+        }
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto j = load(out);
+        expect_envelope(j, "exchange");
+        EXPECT_EQ(j["ranks"].get<int>(), ranks);
+        ASSERT_EQ(j["points"].size(), 4u);
+        expect_keys(j, {"/points/0/gap_s_mean", "/points/0/payload_bytes", "/points/0/shift/mean_s",
+                        "/points/0/shift/median_s", "/points/0/shift/p90_s",
+                        "/points/0/round_s_mean", "/work_elements_per_us"});
+        for (const auto &pt : j["points"]) {
+            const auto &sh = pt["shift"];
+            EXPECT_LE(sh["min_s"].get<double>(), sh["median_s"].get<double>());
+            EXPECT_LE(sh["median_s"].get<double>(), sh["max_s"].get<double>());
+            EXPECT_GE(sh["mean_s"].get<double>(), sh["min_s"].get<double>());
+            // Every rank's every round is a sample.
+            EXPECT_EQ(sh["samples"].get<double>(), ranks * pt["rounds"].get<double>());
+        }
+        // The work gap shows in the measured gap: 200 us of work is at least 200 us of wall.
+        EXPECT_GE(j["points"][1]["gap_s_mean"].get<double>(), 200e-6);
+        EXPECT_TRUE(j["points"][1]["round_overhead"].is_number());
+        expect_figures_sane(j);
+    }
+    const auto bad = run(mpirun(2) + bin("exchange") + " --gaps-us 10,nan --json /tmp/x.json");
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_EQ(bad.err_lines(), 1) << bad.err;
+}
+
 TEST(MachineProfileCli, MergesTheThreeReports) {
     const auto dir = scratch("profile");
     const auto s = dir / "s.json", d = dir / "d.json", p = dir / "p.json", m = dir / "m.json";
     ASSERT_EQ(run(bin("stream") + tiny_stream + " --threads 1 --json " + s.string()).code, 0);
     ASSERT_EQ(run(bin("dgemm") + tiny_dgemm + " --threads 1 --json " + d.string()).code, 0);
     ASSERT_EQ(run(mpirun(2) + bin("pingpong") + tiny_pingpong + " --json " + p.string()).code, 0);
+    const auto e = dir / "e.json";
+    ASSERT_EQ(run(mpirun(2) + bin("exchange") + tiny_exchange + " --json " + e.string()).code, 0);
     const auto r = run(bin("machine-profile") + " --stream " + s.string() + " --dgemm " +
-                       d.string() + " --pingpong " + p.string() + " --out " + m.string());
+                       d.string() + " --pingpong " + p.string() + " --exchange " + e.string() +
+                       " --out " + m.string());
     ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("halo exchange, 2 ranks"), std::string::npos) << r.out;
     const auto j = load(m);
     expect_envelope(j, "machine");
     expect_keys(j, {"/peak_gflops", "/dgemm_gflops", "/stream_triad_GBps", "/ridge_flop_per_byte",
                     "/stream/results", "/dgemm/results", "/pingpong/pairs", "/alpha_matrix_s",
-                    "/comm_classes"});
+                    "/comm_classes", "/exchange/0/points/0/shift/mean_s", "/exchange/0/ranks"});
     EXPECT_NEAR(j["ridge_flop_per_byte"].get<double>(),
                 j["peak_gflops"].get<double>() / j["stream_triad_GBps"].get<double>(), 1e-12);
     // Swapped inputs are refused with a clear error and no output.

@@ -181,6 +181,53 @@ nlohmann::json prediction(double wall_s) {
 }
 } // namespace
 
+// A planted exchange table: cost = 1 us + 1 us per decade of gap above 1 us + 1 ns per byte,
+// overhead 1.2 above the cores. Interpolation must return it between points, hold it outside the
+// gaps measured, go on with the last slope above the largest payload, and the rank count must
+// be matched by load.
+TEST(Comm, ExchangeTableInterpolatesAndMatchesTheLoad) {
+    using sphperf::model::ExchangeModel;
+    auto planted = [](double gap, double bytes) {
+        return 1e-6 + 1e-6 * std::log10(gap / 1e-6) + 1e-9 * bytes;
+    };
+    auto report = [&](int ranks) {
+        nlohmann::json pts = nlohmann::json::array();
+        for (double bytes : {64.0, 1024.0})
+            for (double gap : {1e-6, 1e-4, 1e-2})
+                pts.push_back({{"gap_s_mean", gap},
+                               {"payload_bytes", bytes},
+                               {"round_overhead", ranks > 2 ? 1.2 : 1.0},
+                               {"shift", {{"mean_s", planted(gap, bytes) * ranks / 2}}}});
+        return nlohmann::json{{"ranks", ranks}, {"cores", 2}, {"points", pts}};
+    };
+    const auto m = ExchangeModel::from_profile({{"exchange", {report(2), report(4)}}});
+    const auto &two = m.set_for(2, 1, 2);
+    EXPECT_EQ(two.ranks, 2);
+    EXPECT_EQ(m.set_for(1, 2, 2).ranks, 2); // 1 rank x 2 threads: within the cores
+    EXPECT_EQ(m.set_for(3, 1, 2).ranks, 4); // the only oversubscribed set
+    EXPECT_EQ(m.set_for(2, 2, 2).ranks, 4); // 2 x 2 on 2 cores is the load of 4 ranks
+    for (double gap : {1e-6, 1e-5, 1e-3, 1e-2})
+        for (double bytes : {64.0, 300.0, 1024.0})
+            EXPECT_NEAR(ExchangeModel::shift_seconds(two, gap, bytes), planted(gap, bytes), 1e-12)
+                << gap << " s, " << bytes << " B";
+    // Held outside the gaps measured, and below the smallest payload.
+    EXPECT_NEAR(ExchangeModel::shift_seconds(two, 1.0, 64), planted(1e-2, 64), 1e-12);
+    EXPECT_NEAR(ExchangeModel::shift_seconds(two, 0.0, 8), planted(1e-6, 64), 1e-12);
+    EXPECT_NEAR(ExchangeModel::shift_seconds(two, 1e-4, 4096), planted(1e-4, 4096), 1e-12);
+    EXPECT_DOUBLE_EQ(ExchangeModel::round_overhead(two, 1e-3), 1.0);
+    EXPECT_DOUBLE_EQ(ExchangeModel::round_overhead(m.set_for(4, 1, 2), 1e-3), 1.2);
+    EXPECT_TRUE(ExchangeModel::from_profile(nlohmann::json::object()).empty());
+    // A malformed section is refused by name.
+    auto bad = report(2);
+    bad["points"][0]["shift"].erase("mean_s");
+    try {
+        ExchangeModel::from_profile({{"exchange", {bad}}});
+        ADD_FAILURE() << "a point without mean_s was accepted";
+    } catch (const sphperf::UsageError &e) {
+        EXPECT_NE(std::string(e.what()).find("mean_s"), std::string::npos) << e.what();
+    }
+}
+
 TEST(Validate, FlagsAPlantedTwentyPercentError) {
     bool exceeded = false;
     ValidateOptions strict;

@@ -3,6 +3,7 @@
 // one line naming the value and what was expected and exits 2, anything else exits 1.
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <iostream>
 #include <stdexcept>
 #include <string>
@@ -26,6 +27,9 @@ struct ExitRequest {
 
 // Parses argv; on --help prints and requests exit 0, on a parse error throws UsageError.
 inline void parse_cli(CLI::App &app, int argc, char **argv) {
+    // --help shows every option's default: the values bound before parsing.
+    for (auto *opt : app.get_options())
+        opt->capture_default_str();
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp &) {
@@ -42,6 +46,18 @@ inline void parse_cli(CLI::App &app, int argc, char **argv) {
         throw UsageError(msg + " (see --help)");
     }
 }
+
+// CLI11's number validators let NaN and inf through: combine them with this one.
+inline const CLI::Validator Finite(
+    [](const std::string &s) {
+        try {
+            const double v = std::stod(s);
+            return std::isfinite(v) ? std::string() : "value " + s + " is not a finite number";
+        } catch (const std::exception &) {
+            return "value " + s + " is not a number";
+        }
+    },
+    "FINITE");
 
 // Runs a program body and maps exceptions to exit codes with a one-line message on stderr.
 template <class Body> int guarded_main(std::string_view program, Body &&body) {
