@@ -79,8 +79,9 @@ template <class Y> json regression(const std::vector<Point> &pts, Y y) {
     }
 }
 
-// Cost fit for one grid and thread count: every subset of terms containing "interactions" is
-// scored by leave-one-run-out cross-validation; the best is kept, the scores are reported.
+// Cost fit for one grid and thread count: every subset of terms containing "interactions" whose
+// costs all come out non-negative is scored by leave-one-run-out cross-validation; the best is
+// kept, the scores are reported.
 json compute_fit(const std::vector<Point> &pts) {
     const std::vector<std::string> optional{"const", "owned", "ghost", "cell_moves"};
     json candidates = json::array();
@@ -105,6 +106,14 @@ json compute_fit(const std::vector<Point> &pts) {
         }
         try {
             const double cv = cross_validate(X, y, groups);
+            // Every term is a cost: a set that fits one negative (one cost traded against
+            // another, as ghosts against cell moves in two runs) is not a physical model.
+            const LinearFit all = fit_linear(X, y, terms);
+            if (std::any_of(all.coef.begin(), all.coef.end(), [](double c) { return c < 0; })) {
+                candidates.push_back(
+                    {{"terms", terms}, {"cv_rmse_s", cv}, {"negative_cost", true}});
+                continue;
+            }
             candidates.push_back({{"terms", terms}, {"cv_rmse_s", cv}});
             // A term must pay for itself: 1% better held-out error, else the smaller set wins.
             if (cv < best_cv * (best.empty() || terms.size() < best.size() ? 1.0 : 0.99)) {
@@ -305,6 +314,8 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
                         {"peak_gflops", machine.at("peak_gflops")},
                         {"stream_triad_GBps", machine.at("stream_triad_GBps")},
                         {"hockney", machine.at("hockney")}};
+    if (machine.contains("exchange"))
+        model["machine"]["exchange"] = machine.at("exchange");
     model["calibration_runs"] = sources;
     model["record_bytes"] = record_bytes;
     // The thesis' laws, per setup (a still tank packs its particles differently from a

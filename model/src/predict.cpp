@@ -144,8 +144,10 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
     // The exchanges are blocking: every rank's step lasts as long as the slowest. Time-sharing
     // costs more than the demand per core (switches, ranks waiting for a descheduled
     // neighbour): the exchange benchmark's round overhead at this rank count and gap.
+    // Above the cores a rank waiting in a shift is descheduled and the others compute: the
+    // shifts' cost is inside the time-sharing bound, not added to it.
     const double overhead = set ? ExchangeModel::round_overhead(*set, gap) : 1.0;
-    step_s = shared ? std::max(longest, demand / c.cores * overhead) : longest;
+    step_s = shared ? std::max(slowest, demand / c.cores * overhead) : longest;
     for (auto &s : out) {
         s.wait_s = std::max(0.0, step_s - s.compute_s - s.comm_s);
         s.idle_s = s.field > 0 ? 0.0 : step_s;

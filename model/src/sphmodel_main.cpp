@@ -14,7 +14,6 @@ namespace {
 using namespace sphperf;
 using namespace sphperf::model;
 
-
 struct Options {
     std::filesystem::path machine, model, out;
     std::vector<std::filesystem::path> runs, predictions, measured;

@@ -101,8 +101,8 @@ TEST(ExchangeCli, OneTwoAndThreeRanks) {
     for (int ranks : {1, 2, 3}) {
         const auto dir = scratch("exchange" + std::to_string(ranks));
         const auto out = dir / "e.json";
-        const auto r = run(mpirun(ranks) + bin("exchange") + tiny_exchange + " --json " +
-                           out.string());
+        const auto r =
+            run(mpirun(ranks) + bin("exchange") + tiny_exchange + " --json " + out.string());
         if (ranks == 1) {
             EXPECT_EQ(r.code, 2);
             EXPECT_NE(r.err.find("at least 2 MPI ranks"), std::string::npos) << r.err;
@@ -143,9 +143,9 @@ TEST(MachineProfileCli, MergesTheThreeReports) {
     ASSERT_EQ(run(mpirun(2) + bin("pingpong") + tiny_pingpong + " --json " + p.string()).code, 0);
     const auto e = dir / "e.json";
     ASSERT_EQ(run(mpirun(2) + bin("exchange") + tiny_exchange + " --json " + e.string()).code, 0);
-    const auto r = run(bin("machine-profile") + " --stream " + s.string() + " --dgemm " +
-                       d.string() + " --pingpong " + p.string() + " --exchange " + e.string() +
-                       " --out " + m.string());
+    const auto r =
+        run(bin("machine-profile") + " --stream " + s.string() + " --dgemm " + d.string() +
+            " --pingpong " + p.string() + " --exchange " + e.string() + " --out " + m.string());
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_NE(r.out.find("halo exchange, 2 ranks"), std::string::npos) << r.out;
     const auto j = load(m);
