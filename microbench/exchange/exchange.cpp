@@ -6,6 +6,7 @@
 // count the ranks take turns. So this measures the shift's cost per (ranks, gap, payload) as
 // the app meets it, mean beside median (the model predicts sums, so it uses the mean), and the
 // throughput lost to time-sharing.
+#include "mpi_program.hpp"
 #include "sphperf/cli.hpp"
 #include "sphperf/report.hpp"
 #include "sphperf/stats.hpp"
@@ -270,22 +271,7 @@ int run(int argc, char **argv, int rank, int size) {
     if (size < 2)
         throw UsageError("exchange needs at least 2 MPI ranks, got " + std::to_string(size) +
                          " (run it with scripts/mpirun.sh -n 2 ...)");
-    int path_ok = 1;
-    std::string path_error;
-    if (rank == 0 && cfg.json) {
-        try {
-            JsonSink::check_writable(*cfg.json);
-        } catch (const UsageError &e) {
-            path_ok = 0;
-            path_error = e.what();
-        }
-    }
-    MPI_Bcast(&path_ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    if (!path_ok) {
-        if (rank == 0)
-            throw UsageError(path_error);
-        throw ExitRequest{exit_usage};
-    }
+    check_report_path_on_root(cfg.json, rank);
 
     const int cores = topo.cores();
     Chain chain;
@@ -350,17 +336,5 @@ int run(int argc, char **argv, int rank, int size) {
 } // namespace
 
 int main(int argc, char **argv) {
-    MPI_Init(&argc, &argv);
-    int rank = 0, size = 1;
-    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-    MPI_Comm_size(MPI_COMM_WORLD, &size);
-    const int code = sphperf::guarded_main(rank == 0 ? "exchange" : "", [&] {
-        if (rank != 0) {
-            std::cout.setstate(std::ios::failbit);
-            std::cerr.setstate(std::ios::failbit);
-        }
-        return run(argc, argv, rank, size);
-    });
-    MPI_Finalize();
-    return code;
+    return sphperf::mpi_program("exchange", argc, argv, run);
 }

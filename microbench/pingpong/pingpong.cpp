@@ -1,6 +1,7 @@
 // MPI ping-pong over every rank pair, one pair at a time while the others wait (thesis 3.8.3):
 // adaptive repetitions until the median round trip is known to +-5% (95% CI), a piecewise
 // Hockney fit per pair, the thesis' two-point estimates, and a locality class per pair.
+#include "mpi_program.hpp"
 #include "sphperf/cli.hpp"
 #include "sphperf/model/hockney.hpp"
 #include "sphperf/report.hpp"
@@ -423,23 +424,7 @@ int run(int argc, char **argv, int rank, int size) {
     if (size < 2)
         throw UsageError("ping-pong needs at least 2 MPI ranks, got " + std::to_string(size) +
                          " (run it with scripts/mpirun.sh -n 2 ...)");
-    // Only rank 0 writes; it alone checks the path, then tells the others.
-    int path_ok = 1;
-    std::string path_error;
-    if (rank == 0 && cfg.json) {
-        try {
-            JsonSink::check_writable(*cfg.json);
-        } catch (const UsageError &e) {
-            path_ok = 0;
-            path_error = e.what();
-        }
-    }
-    MPI_Bcast(&path_ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    if (!path_ok) {
-        if (rank == 0)
-            throw UsageError(path_error);
-        throw ExitRequest{exit_usage};
-    }
+    check_report_path_on_root(cfg.json, rank);
 
     std::vector<RankInfo> ranks = gather_rank_info(topo, rank, size);
     if (rank == 0)
@@ -485,18 +470,5 @@ int run(int argc, char **argv, int rank, int size) {
 } // namespace
 
 int main(int argc, char **argv) {
-    MPI_Init(&argc, &argv);
-    int rank = 0, size = 1;
-    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-    MPI_Comm_size(MPI_COMM_WORLD, &size);
-    // Only rank 0 speaks; the others return the same code silently.
-    const int code = sphperf::guarded_main(rank == 0 ? "pingpong" : "", [&] {
-        if (rank != 0) {
-            std::cout.setstate(std::ios::failbit);
-            std::cerr.setstate(std::ios::failbit);
-        }
-        return run(argc, argv, rank, size);
-    });
-    MPI_Finalize();
-    return code;
+    return sphperf::mpi_program("pingpong", argc, argv, run);
 }
