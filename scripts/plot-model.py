@@ -182,6 +182,14 @@ def markdown(model, validation, args, out):
     if args.calibration_s and args.validation_s:
         lines.append(f"Calibration took {args.calibration_s:.0f} s of wall time, the validation runs it "
                      f"predicts {args.validation_s:.0f} s: {100 * args.calibration_s / args.validation_s:.0f} %.")
+    for c in model["compute"]:
+        lvl = c.get("run_level")
+        if not lvl:
+            continue
+        factors = ", ".join(f"{r['factor']:.2f}" for r in lvl["runs"])
+        lines.append(f"Machine drift, {c['grid']} grid: the calibration runs took {factors} times the "
+                     f"least-squares fit (spread {lvl['spread_pct']:.0f} %); the model takes the median "
+                     f"run's level ({lvl['factor']:.3f}). No prediction here is finer than that spread.")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
                  "compute | comm | wait | idle | pairs | exports (edge) | exports (regression) |")

@@ -82,7 +82,7 @@ template <class Y> json regression(const std::vector<Point> &pts, Y y) {
 // Cost fit for one grid and thread count: every subset of terms containing "interactions" whose
 // costs all come out non-negative is scored by leave-one-run-out cross-validation; the best is
 // kept, the scores are reported.
-json compute_fit(const std::vector<Point> &pts) {
+json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs) {
     const std::vector<std::string> optional{"const", "owned", "ghost", "cell_moves"};
     json candidates = json::array();
     double best_cv = std::numeric_limits<double>::infinity();
@@ -134,11 +134,25 @@ json compute_fit(const std::vector<Point> &pts) {
         for (const auto &t : best)
             X.back().push_back(p.work.value(t));
     }
-    const LinearFit f = fit_linear(X, y, best);
+    // Least squares picks the shape (which terms, in what ratio); the level is the median
+    // calibration run's, so one run measured while the machine was slow does not set it.
+    const LinearFit ls = fit_linear(X, y, best);
+    const RunLevel level = run_level(ls, X, y, groups);
+    const LinearFit f = scaled(ls, level.median);
     std::vector<double> residuals;
     for (std::size_t i = 0; i < pts.size(); ++i)
         residuals.push_back(f.predict(X[i]) - y[i]);
     json j = f.to_json();
+    json factors = json::array();
+    for (std::size_t k = 0; k < level.groups.size(); ++k)
+        factors.push_back({{"run", runs.at(static_cast<std::size_t>(level.groups[k])).path},
+                           {"factor", level.factors[k]}});
+    j["least_squares"] = ls.to_json();
+    j["run_level"] = {{"method", "median over calibration runs of measured / least-squares "
+                                 "compute time; the coefficients are scaled by it"},
+                      {"factor", level.median},
+                      {"spread_pct", level.spread_pct},
+                      {"runs", factors}};
     j["cv_rmse_s"] = best_cv;
     j["candidates"] = candidates;
     j["residuals_s"] = residuals;
@@ -337,7 +351,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     model["regressions"] = regs;
     json compute = json::array();
     for (const auto &[key, pts] : by_grid_threads) {
-        json c = compute_fit(pts);
+        json c = compute_fit(pts, runs);
         c["grid"] = key.first;
         c["threads"] = key.second;
         compute.push_back(c);

@@ -5,7 +5,9 @@
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <numeric>
 #include <set>
@@ -150,6 +152,43 @@ double cross_validate(const std::vector<std::vector<double>> &X, std::span<const
             }
     }
     return std::sqrt(ss / static_cast<double>(std::max<std::size_t>(count, 1)));
+}
+
+RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X,
+                   std::span<const double> y, std::span<const int> groups) {
+    if (X.size() != y.size() || y.size() != groups.size())
+        throw std::invalid_argument("run_level: X, y and groups differ in length");
+    std::map<int, std::pair<double, double>> sums; // group -> (measured, fitted)
+    for (std::size_t i = 0; i < y.size(); ++i) {
+        auto &s = sums[groups[i]];
+        s.first += y[i];
+        s.second += f.predict(X[i]);
+    }
+    RunLevel level;
+    for (const auto &[g, s] : sums)
+        if (s.second > 0) {
+            level.groups.push_back(g);
+            level.factors.push_back(s.first / s.second);
+        }
+    if (level.factors.empty())
+        return level;
+    std::vector<double> sorted = level.factors;
+    std::sort(sorted.begin(), sorted.end());
+    const std::size_t n = sorted.size();
+    level.median = n % 2 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
+    level.spread_pct = 100.0 * (sorted.back() / sorted.front() - 1.0);
+    return level;
+}
+
+LinearFit scaled(LinearFit f, double factor) {
+    for (auto &c : f.coef)
+        c *= factor;
+    for (auto &s : f.se)
+        s *= std::abs(factor);
+    for (auto &row : f.cov)
+        for (auto &c : row)
+            c *= factor * factor;
+    return f;
 }
 
 } // namespace sphperf::model

@@ -60,6 +60,31 @@ TEST(Fit, CrossValidationPrefersThePlantedTerms) {
     EXPECT_GT(cross_validate(one, y, groups), 5 * cross_validate(both, y, groups));
 }
 
+TEST(Fit, RunLevelIsTheMedianRunsAndIgnoresOneSlowRun) {
+    // Five runs of 60 ns per interaction (2 % noise); one of them measured 35 % slow, with the
+    // largest work so it has the leverage. Least squares is pulled up, the median run level is not.
+    std::mt19937 rng(11);
+    std::normal_distribution<double> noise(0, 0.02);
+    std::vector<std::vector<double>> X;
+    std::vector<double> y;
+    std::vector<int> groups;
+    for (int run = 0; run < 5; ++run)
+        for (int i = 0; i < 30; ++i) {
+            const double work = (run == 4 ? 4e5 : 1e5) * (1 + 0.01 * i);
+            X.push_back({work});
+            y.push_back(60e-9 * work * (run == 4 ? 1.35 : 1.0) * (1 + noise(rng)));
+            groups.push_back(run);
+        }
+    const LinearFit ls = fit_linear(X, y, {"interactions"});
+    EXPECT_GT(ls.coef[0], 1.2 * 60e-9);
+    const RunLevel level = run_level(ls, X, y, groups);
+    ASSERT_EQ(level.factors.size(), 5u);
+    const LinearFit f = scaled(ls, level.median);
+    EXPECT_NEAR(f.coef[0], 60e-9, 0.02 * 60e-9);
+    EXPECT_NEAR(f.se[0] / f.coef[0], ls.se[0] / ls.coef[0], 1e-12);
+    EXPECT_NEAR(level.spread_pct, 35, 5);
+}
+
 TEST(Workload, RecutFollowsTheAppsSlabsAndEdgeColumns) {
     // 7 columns on 3 ranks: the app's first_column gives [0,2) [2,4) [4,7).
     const std::vector<double> fluid{1, 2, 3, 4, 5, 6, 7}, walls{10, 1, 1, 1, 1, 1, 10};

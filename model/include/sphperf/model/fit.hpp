@@ -37,4 +37,20 @@ LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y);
 double cross_validate(const std::vector<std::vector<double>> &X, std::span<const double> y,
                       std::span<const int> groups);
 
+// Run-to-run machine speed: each group's (calibration run's) measured sum over the fit's
+// predicted sum. A machine that slows down for minutes (measured here: 35 % for two whole runs)
+// moves a least-squares fit by the leverage of those runs; the median of the factors does not.
+struct RunLevel {
+    std::vector<int> groups;     // in ascending order
+    std::vector<double> factors; // measured / fitted, per group
+    double median = 1;           // median of factors (mean of the middle two for an even count)
+    double spread_pct = 0;       // 100 (max / min - 1): how far identical work drifted
+};
+RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X,
+                   std::span<const double> y, std::span<const int> groups);
+
+// The fit scaled by a factor: coefficients, standard errors and covariance (so a level applied
+// after the fit keeps its relative uncertainty).
+LinearFit scaled(LinearFit f, double factor);
+
 } // namespace sphperf::model
