@@ -192,8 +192,12 @@ def markdown(model, validation, args, out):
                      f"run's level ({lvl['factor']:.3f}). No prediction here is finer than that spread.")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
-                 "compute | comm | wait | idle | pairs | exports (edge) | exports (regression) |")
-    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+                 "compute | comm | wait | idle | pairs | exports (edge) | exports (regression) | peak RSS (MB, error) |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    def rss(r):
+        m = r.get("peak_rss_bytes")
+        return f"{m['measured_max_rank'] / 1e6:.1f}, {100 * m['error']:+.1f} %" if m else "-"
+
     for r in validation["configurations"]:
         ph = r["phases"]
         pct = lambda v: f"{100 * v:+.1f} %"
@@ -204,7 +208,7 @@ def markdown(model, validation, args, out):
             f"{pct(ph['comm']['error'])} | {pct(ph['wait']['error'])} | "
             f"{pct(ph['idle']['error']) if ph['idle']['measured_s'] > 0 or ph['idle']['predicted_s'] > 0 else '-'} | "
             f"{pct(r['pairs_per_step']['error'])} | {pct(r['exported_per_step']['error_edge_columns'])} | "
-            f"{pct(r['exported_per_step']['error_regression'])} |")
+            f"{pct(r['exported_per_step']['error_regression'])} | {rss(r)} |")
     s = validation["summary"]
     lines.append("")
     if s["wall_abs_error"]:
@@ -221,6 +225,13 @@ def markdown(model, validation, args, out):
     if s["model_comm_abs_error_per_interval"]:
         lines.append(f"Communication, model prediction from the predicted workload: median per-interval "
                      f"|error| {100 * s['model_comm_abs_error_per_interval']['median']:.1f} %.")
+    if s.get("peak_rss_abs_error"):
+        m = validation["configurations"][0].get("peak_rss_bytes", {})
+        lines.append(f"Peak RSS of the largest rank (memory model of model/README.md): |error| median "
+                     f"{100 * s['peak_rss_abs_error']['median']:.1f} %, max "
+                     f"{100 * s['peak_rss_abs_error']['max']:.1f} %; the thesis' Eqs. 4.4/4.5 bound is "
+                     f"{m.get('thesis_bound_max_rank', 0) / max(m.get('measured_max_rank', 1), 1):.1f}x the "
+                     f"measured peak in the first configuration.")
     lines.append("")
     lines.append(f"Roofline: {model['roofline']['verdict']}.")
     with open(out, "w") as f:

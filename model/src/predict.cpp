@@ -23,7 +23,13 @@ struct Costs {
     ExchangeModel exchange; // empty: the shifts are costed message by message with Hockney
     double record_bytes = 72;
     int cores = 1;
+    // Peak RSS per rank (model/README.md "Memory"); absent in a model without calibration RSS.
+    double bytes_per_particle = 0, bytes_per_interaction = 0, fixed_bytes = 0;
 };
+
+// Thesis Eqs. 4.4 and 4.5: particles 2 n m, pairs n m k / 2 with k = 32 x 9 candidate
+// neighbours; its pessimistic upper bound, with m our bytes per stored particle.
+constexpr double thesis_k = 32 * 9;
 
 Costs costs_of(const json &model, const std::string &setup, const std::string &grid, int threads) {
     Costs c;
@@ -56,6 +62,12 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         c.exchange = ExchangeModel::from_profile(model.at("machine"));
         c.record_bytes = model.at("record_bytes").get<double>();
         c.cores = model.at("machine").at("cores").get<int>();
+        if (model.contains("memory")) {
+            const auto &mem = model.at("memory");
+            c.bytes_per_particle = mem.at("bytes_per_particle").get<double>();
+            c.bytes_per_interaction = mem.at("bytes_per_interaction").get<double>();
+            c.fixed_bytes = mem.at("fixed_bytes").get<double>();
+        }
     } catch (const json::exception &e) {
         throw UsageError(std::string("model: ") + e.what());
     }
@@ -193,6 +205,9 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
             make_target(req.setup, req.grid, req.scale, req.delta, req.dt, P, req.threads);
         json intervals = json::array();
         std::vector<double> tot(static_cast<std::size_t>(P) * 6, 0.0);
+        // Largest stored particle count and interaction count of each rank at any sample.
+        std::vector<double> peak_particles(static_cast<std::size_t>(P), 0.0),
+            peak_interactions(static_cast<std::size_t>(P), 0.0);
         double wall = 0, idle_onset_step = -1;
         for (std::int64_t s0 = 0; s0 < steps; s0 += req.interval) {
             const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
@@ -213,6 +228,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 for (std::size_t r = 0; r < ranks.size(); ++r) {
                     auto &m = mean[r];
                     const auto &v = ranks[r];
+                    peak_particles[r] = std::max(peak_particles[r], v.field + v.walls + v.ghost);
+                    peak_interactions[r] = std::max(peak_interactions[r], v.interactions);
                     for (auto [dst, src_v] : {std::pair{&m.field, v.field},
                                               {&m.walls, v.walls},
                                               {&m.ghost, v.ghost},
@@ -274,8 +291,29 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
             wait += t[2];
             idle += t[3];
         }
+        json memory = nullptr;
+        if (c.bytes_per_particle > 0) {
+            json rss = json::array();
+            double worst = 0, worst_thesis = 0, total = 0;
+            for (std::size_t r = 0; r < peak_particles.size(); ++r) {
+                const double n = peak_particles[r];
+                const double b = c.fixed_bytes + c.bytes_per_particle * n +
+                                 c.bytes_per_interaction * peak_interactions[r];
+                const double thesis =
+                    2 * n * c.bytes_per_particle + n * c.bytes_per_particle * thesis_k / 2;
+                rss.push_back(b);
+                total += b;
+                worst = std::max(worst, b);
+                worst_thesis = std::max(worst_thesis, thesis);
+            }
+            memory = {{"peak_rss_bytes_per_rank", rss},
+                      {"peak_rss_bytes_max_rank", worst},
+                      {"thesis_bound_bytes_max_rank", worst_thesis},
+                      {"peak_rss_bytes_total", total}};
+        }
         configs.push_back(
             {{"ranks", P},
+             {"memory", memory},
              {"threads", req.threads},
              {"oversubscribed", P * req.threads > c.cores},
              {"wall_s", wall},

@@ -45,7 +45,8 @@ json validate(const json &header, const std::vector<json> &predictions,
               const std::vector<SphRun> &measured, const ValidateOptions &opt, bool &exceeded) {
     json out = header;
     json rows = json::array(), unmatched = json::array();
-    std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors;
+    std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors,
+        memory_errors;
     exceeded = false;
     for (const auto &m : measured) {
         const json *p = match(predictions, m);
@@ -155,6 +156,19 @@ json validate(const json &header, const std::vector<json> &predictions,
                    {"predicted_regression", p_exp_reg},
                    {"error_regression", rel(p_exp_reg, exported / steps)}}},
                  {"comm_series", series}};
+        // Peak RSS of the largest rank, against the memory model and the thesis' bound.
+        if (p->contains("memory") && !p->at("memory").is_null() && !m.peak_rss_bytes.empty()) {
+            const auto &pm = p->at("memory");
+            const double measured_rss =
+                *std::max_element(m.peak_rss_bytes.begin(), m.peak_rss_bytes.end());
+            const double predicted_rss = pm.at("peak_rss_bytes_max_rank").get<double>();
+            row["peak_rss_bytes"] = {
+                {"measured_max_rank", measured_rss},
+                {"predicted_max_rank", predicted_rss},
+                {"error", rel(predicted_rss, measured_rss)},
+                {"thesis_bound_max_rank", pm.at("thesis_bound_bytes_max_rank")}};
+            memory_errors.push_back(std::abs(rel(predicted_rss, measured_rss)));
+        }
         rows.push_back(row);
     }
     auto summary = [](std::vector<double> v) -> json {
@@ -169,6 +183,7 @@ json validate(const json &header, const std::vector<json> &predictions,
                       {"inline_comm_abs_error_per_interval", summary(inline_comm_errors)},
                       {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
                       {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
+                      {"peak_rss_abs_error", summary(memory_errors)},
                       {"max_error", opt.max_error ? json(*opt.max_error) : json(nullptr)},
                       {"exceeded", exceeded}};
     return out;
@@ -260,19 +275,24 @@ std::string prediction_table(const json &p) {
 }
 
 std::string validation_table(const json &v) {
-    std::string s = fmt("  %-8s %-5s %5s %5s %3s %6s %10s %10s %8s %8s %8s %8s %8s\n", "setup",
-                        "grid", "scale", "ranks", "thr", "steps", "measured", "predicted", "wall",
-                        "compute", "comm", "wait", "pairs");
+    std::string s = fmt("  %-8s %-5s %5s %5s %3s %6s %10s %10s %8s %8s %8s %8s %8s %8s\n",
+                        "setup", "grid", "scale", "ranks", "thr", "steps", "measured", "predicted",
+                        "wall", "compute", "comm", "wait", "pairs", "peak RSS");
     for (const auto &r : v.at("configurations")) {
         const auto &ph = r.at("phases");
+        const std::string rss =
+            r.contains("peak_rss_bytes")
+                ? fmt("%+7.1f%%", 100 * d(r.at("peak_rss_bytes").at("error")))
+                : std::string("       -");
         s += fmt("  %-8s %-5s %5g %5d %3d %6lld %9.2fs %9.2fs %+7.1f%% %+7.1f%% %+7.1f%% %+7.1f%% "
-                 "%+7.1f%%\n",
+                 "%+7.1f%% %s\n",
                  r.at("setup").get<std::string>().c_str(), r.at("grid").get<std::string>().c_str(),
                  d(r.at("scale")), r.at("ranks").get<int>(), r.at("threads").get<int>(),
                  r.at("steps").get<long long>(), d(r.at("measured_wall_s")),
                  d(r.at("predicted_wall_s")), 100 * d(r.at("wall_error")),
                  100 * d(ph.at("compute").at("error")), 100 * d(ph.at("comm").at("error")),
-                 100 * d(ph.at("wait").at("error")), 100 * d(r.at("pairs_per_step").at("error")));
+                 100 * d(ph.at("wait").at("error")), 100 * d(r.at("pairs_per_step").at("error")),
+                 rss.c_str());
     }
     const auto &sm = v.at("summary");
     if (!sm.at("wall_abs_error").is_null())
@@ -291,6 +311,10 @@ std::string validation_table(const json &v) {
     if (!sm.at("model_comm_abs_error_per_interval").is_null())
         s += fmt("  communication, model prediction, |error| per interval: median %.1f%%\n",
                  100 * d(sm.at("model_comm_abs_error_per_interval").at("median")));
+    if (sm.contains("peak_rss_abs_error") && !sm.at("peak_rss_abs_error").is_null())
+        s += fmt("  peak RSS of the largest rank, |error|: median %.1f%%, max %.1f%%\n",
+                 100 * d(sm.at("peak_rss_abs_error").at("median")),
+                 100 * d(sm.at("peak_rss_abs_error").at("max")));
     for (const auto &u : v.at("unmatched_runs"))
         s += "  not in any prediction: " + u.get<std::string>() + "\n";
     return s;

@@ -184,6 +184,7 @@ SphRun measured_run(double wall_s) {
     rk.timers = {{"pairs_s", 0.5}, {"comp_s", 0.5}, {"comm_s", 0}, {"wait_s", 0}};
     iv.ranks = {rk};
     r.intervals = {iv};
+    r.peak_rss_bytes = {40e6};
     return r;
 }
 nlohmann::json prediction(double wall_s) {
@@ -191,6 +192,8 @@ nlohmann::json prediction(double wall_s) {
         {"ranks", 1},
         {"oversubscribed", false},
         {"wall_s", wall_s},
+        {"memory",
+         {{"peak_rss_bytes_max_rank", 30e6}, {"thesis_bound_bytes_max_rank", 200e6}}},
         {"totals", {{"compute_s", wall_s}, {"comm_s", 0}, {"wait_s", 0}, {"idle_s", 0}}},
         {"per_rank", {{{"pairs_per_step", 1000}, {"exported_per_step", 0}}}},
         {"intervals", {{{"ranks", {{{"comm_s", 0}, {"exported_regression", 0}}}}}}}};
@@ -262,6 +265,9 @@ TEST(Validate, FlagsAPlantedTwentyPercentError) {
     ASSERT_EQ(v["configurations"].size(), 1u);
     EXPECT_NEAR(v["configurations"][0]["wall_error"].get<double>(), 0.2, 1e-12);
     EXPECT_NEAR(v["configurations"][0]["phases"]["compute"]["error"].get<double>(), 0.2, 1e-12);
+    // Peak RSS: 30 MB predicted against 40 MB measured is -25 %.
+    EXPECT_NEAR(v["configurations"][0]["peak_rss_bytes"]["error"].get<double>(), -0.25, 1e-12);
+    EXPECT_NEAR(v["summary"]["peak_rss_abs_error"]["max"].get<double>(), 0.25, 1e-12);
     ValidateOptions loose;
     loose.max_error = 0.25;
     validate({}, {prediction(1.2)}, {measured_run(1.0)}, loose, exceeded);
