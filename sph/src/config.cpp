@@ -30,8 +30,8 @@ std::string_view name_of(E e, const std::pair<std::string_view, E> (&names)[N]) 
 
 constexpr std::pair<std::string_view, Setup> setups[] = {
     {"dambreak", Setup::dambreak}, {"still", Setup::still}, {"column", Setup::column}};
-constexpr std::pair<std::string_view, GridKind> grids[] = {{"list", GridKind::list},
-                                                           {"table", GridKind::table}};
+constexpr std::pair<std::string_view, GridKind> grids[] = {
+    {"list", GridKind::list}, {"table", GridKind::table}, {"sorted", GridKind::sorted}};
 constexpr std::pair<std::string_view, BoundaryKind> boundaries[] = {
     {"mirror", BoundaryKind::mirror}, {"fixed", BoundaryKind::fixed}};
 

@@ -28,7 +28,9 @@ Config parse(int argc, char **argv) {
                  "on MPI slabs with OpenMP threads, Cell+List or Cell+Table grids, instrumented "
                  "for performance modelling. Launch with scripts/mpirun.sh -n RANKS."};
     app.add_option("--setup", setup, "dambreak, still or column");
-    app.add_option("--grid", grid, "Cell grid: list (Cell+List) or table (Cell+Table)");
+    app.add_option("--grid", grid,
+                   "Cell grid: list (Cell+List), table (Cell+Table) or sorted (particles in cell "
+                   "order, no stored pairs)");
     app.add_option("--boundary", boundary, "Walls: mirror (Neumann) or fixed (Dirichlet)");
     app.add_option("--scale", cfg.scale, "Geometry scale factor (thesis Scale)");
     app.add_option("--delta", cfg.physics.delta, "Particle spacing in metres");
@@ -165,8 +167,9 @@ int run(int argc, char **argv, int rank, int ranks) {
     const std::vector<int> pus = domain.gather_int(bound_pu());
     if (cfg.machine)
         attach_message_costs(domain, *cfg.machine, pus, omp_get_max_threads());
-    RunRecord rec = cfg.grid == GridKind::list ? Simulation<CellList>(cfg, geo, domain).run()
-                                               : Simulation<CellTable>(cfg, geo, domain).run();
+    RunRecord rec = cfg.grid == GridKind::list    ? Simulation<CellList>(cfg, geo, domain).run()
+                    : cfg.grid == GridKind::table ? Simulation<CellTable>(cfg, geo, domain).run()
+                                                  : Simulation<CellSorted>(cfg, geo, domain).run();
     rec.placement_pus = pus;
     if (rank == 0) {
         const Topology topo;

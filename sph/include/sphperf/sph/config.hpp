@@ -12,7 +12,7 @@
 namespace sphperf::sph {
 
 enum class Setup { dambreak, still, column };
-enum class GridKind { list, table };
+enum class GridKind { list, table, sorted };
 enum class BoundaryKind { mirror, fixed };
 
 Setup parse_setup(std::string_view s);

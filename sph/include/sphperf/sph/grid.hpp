@@ -43,6 +43,7 @@ template <class G>
 concept CellGrid = requires(G g, const G cg, const Particles &p, const CellWindow &w,
                             std::int64_t id, void (*visit)(std::uint32_t)) {
     { G::name } -> std::convertible_to<std::string_view>;
+    typename G::Neighbours;   // what the physics walks: a stored list, or the grid itself
     g.update(p, w);           // file every current particle in its cell
     g.remove_transient(p, w); // before ghosts and mirrors are dropped
     g.forget(id);             // an owned particle left this rank
@@ -53,6 +54,7 @@ concept CellGrid = requires(G g, const G cg, const Particles &p, const CellWindo
 // Cell+List: head[cell] and next[particle], rebuilt every step; lock-free parallel insertion.
 class CellList {
 public:
+    using Neighbours = NeighbourList;
     static constexpr std::string_view name = "list";
 
     void update(const Particles &p, const CellWindow &w);
@@ -77,6 +79,7 @@ private:
 // id -> (cell, slot) is an array lookup, a perfect hash, and insert and remove are O(1).
 class CellTable {
 public:
+    using Neighbours = NeighbourList;
     static constexpr std::string_view name = "table";
 
     void update(const Particles &p, const CellWindow &w);
@@ -105,11 +108,6 @@ private:
     int window_cells_ = -1;
 };
 
-struct PairCounts {
-    std::uint64_t pairs = 0;        // unordered pairs within 3h with at least one fluid particle
-    std::uint64_t interactions = 0; // ordered pairs (i, j) contributing to an owned particle i
-};
-
 // Two particles interact unless neither is fluid (walls and mirrors do not act on each other).
 inline bool interacting(Kind a, Kind b) {
     return a == Kind::fluid || b == Kind::fluid;
@@ -120,6 +118,13 @@ inline bool interacting(Kind a, Kind b) {
 template <CellGrid G>
 PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &w, double radius,
                            NeighbourList &nl);
+
+// Stored-list schemes: the search fills the list and keeps its counts.
+template <CellGrid G>
+void build_neighbours(const G &grid, const Particles &p, const CellWindow &w, double radius,
+                      NeighbourList &nl) {
+    nl.counts = find_neighbours(grid, p, w, radius, nl);
+}
 
 } // namespace sphperf::sph
 

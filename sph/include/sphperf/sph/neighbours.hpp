@@ -10,9 +10,15 @@
 
 namespace sphperf::sph {
 
+struct PairCounts {
+    std::uint64_t pairs = 0;        // unordered pairs within 3h with at least one fluid particle
+    std::uint64_t interactions = 0; // ordered pairs (i, j) contributing to an owned particle i
+};
+
 struct NeighbourList {
     std::vector<std::uint32_t> offsets; // size owned + 1
     std::vector<std::uint32_t> index;   // neighbour indices, offsets[i] .. offsets[i + 1]
+    PairCounts counts;                  // of the last search
 
     std::size_t particles() const { return offsets.empty() ? 0 : offsets.size() - 1; }
     std::size_t interactions() const { return index.size(); }

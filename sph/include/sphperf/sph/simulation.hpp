@@ -9,6 +9,7 @@
 #include "sphperf/sph/physics.hpp"
 #include "sphperf/sph/record.hpp"
 #include "sphperf/sph/setup.hpp"
+#include "sphperf/sph/sorted.hpp"
 #include "sphperf/sph/timers.hpp"
 
 #include <omp.h>
@@ -57,10 +58,9 @@ private:
     CellWindow window_;
     Grid grid_;
     Particles p_;
-    NeighbourList nl_;
+    typename Grid::Neighbours nb_; // the grid's own neighbourhood type
     PhaseTimers step_timers_, total_timers_;
     RankInterval acc_;
-    PairCounts last_counts_;
     std::size_t last_mirrors_ = 0, last_ghosts_ = 0, last_exported_ = 0, last_migrated_ = 0;
     std::int64_t first_mirror_id_ = 0;
     std::vector<std::uint32_t> mirror_sources_;
@@ -109,7 +109,7 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
     }
     {
         ScopedPhase t(step_timers_, Phase::pairs);
-        last_counts_ = find_neighbours(grid_, p_, window_, phys_.cell_size(), nl_);
+        build_neighbours(grid_, p_, window_, phys_.cell_size(), nb_);
     }
     // Density advances with the half-step velocities (leapfrog for the acoustic pair), then the
     // copies of it held by mirrors and ghosts follow, then pressure and momentum use it. The
@@ -117,7 +117,7 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
     if (advance_density_) {
         {
             ScopedPhase t(step_timers_, Phase::comp);
-            continuity(p_, nl_, phys_);
+            continuity(p_, nb_, phys_);
             advance_density(p_, cfg_.dt);
             refresh_mirrors(p_, p_.owned(), mirror_sources_);
         }
@@ -125,7 +125,7 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
     }
     ScopedPhase t(step_timers_, Phase::comp);
     equation_of_state(p_, phys_);
-    momentum(p_, nl_, phys_);
+    momentum(p_, nb_, phys_);
 }
 
 template <CellGrid Grid> void Simulation<Grid>::step() {
@@ -263,7 +263,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         step();
         if (cfg_.physics.shepard_every > 0 && s % cfg_.physics.shepard_every == 0) {
             ScopedPhase t(step_timers_, Phase::comp);
-            shepard_filter(p_, nl_, phys_);
+            shepard_filter(p_, nb_, phys_);
         }
         const double dt_wall = wall_seconds() - t0;
         if (p_.fluid() == 0) {
@@ -274,9 +274,9 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         acc_.virtual_ += static_cast<double>(
             cfg_.boundary == BoundaryKind::mirror ? last_mirrors_ : p_.owned() - p_.fluid());
         acc_.ghost += static_cast<double>(last_ghosts_);
-        acc_.pairs += static_cast<double>(last_counts_.pairs);
-        acc_.interactions += static_cast<double>(last_counts_.interactions);
-        interactions_total_ += static_cast<double>(last_counts_.interactions);
+        acc_.pairs += static_cast<double>(nb_.counts.pairs);
+        acc_.interactions += static_cast<double>(nb_.counts.interactions);
+        interactions_total_ += static_cast<double>(nb_.counts.interactions);
         acc_.exported += static_cast<double>(last_exported_);
         acc_.migrated += static_cast<double>(last_migrated_);
         acc_.cell_moves += static_cast<double>(grid_.last_moves());

@@ -1,0 +1,107 @@
+#pragma once
+// Cell+Sorted, the third grid scheme: every step the particles are copied in cell order
+// (counting sort; cells numbered column by column, so the three cells of a neighbouring column
+// are one contiguous range and a particle's neighbourhood is three ranges), by id within a
+// cell. No pair is stored: density, forces and the Shepard filter walk the ranges directly,
+// each particle's sum by one thread in a fixed order (columns west to east, rows bottom to top,
+// ids within a cell, and a fixed 8-lane split of each range). The result therefore does not
+// depend on the thread count, the rank count, or where the arrays sit in memory.
+#include "sphperf/sph/config.hpp"
+#include "sphperf/sph/grid.hpp"
+#include "sphperf/sph/kernel.hpp"
+#include "sphperf/sph/particles.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+namespace sphperf::sph {
+
+struct SortedNeighbours;
+
+class CellSorted {
+public:
+    static constexpr std::string_view name = "sorted";
+    using Neighbours = SortedNeighbours;
+
+    // The sorted copy: what the inner loops read, contiguous per cell.
+    struct View {
+        const double *x, *y, *vx, *vy, *rho, *p, *mass, *fluid; // fluid: 1 or 0
+        const std::int64_t *id;
+        const std::uint32_t *orig;  // sorted position -> index in Particles
+        const std::uint32_t *start; // cell -> first sorted position; start[cells] = size
+        int cols, rows;
+        std::size_t owned; // a sorted particle is owned when orig < owned
+    };
+
+    void update(const Particles &p, const CellWindow &w); // sort and copy
+    void remove_transient(const Particles &, const CellWindow &) {}
+    void forget(std::int64_t) {}
+    std::size_t last_moves() const { return moves_; }
+    // Window cell numbering (row-major, CellWindow::cell) in, original indices out.
+    template <class F> void for_each_in_cell(int cell, const Particles &, F &&f) const {
+        const int k = sorted_cell(cell);
+        for (std::uint32_t s = start_[static_cast<std::size_t>(k)];
+             s < start_[static_cast<std::size_t>(k) + 1]; ++s)
+            f(orig_[s]);
+    }
+    // Densities and pressures changed since the sort (continuity, equation of state, Shepard).
+    void refresh_density(const Particles &p);
+    View view() const;
+
+private:
+    int sorted_cell(int window_cell) const {
+        return (window_cell % cols_) * rows_ + window_cell / cols_;
+    }
+    std::vector<double> x_, y_, vx_, vy_, rho_, p_, mass_, fluid_;
+    std::vector<std::int64_t> id_;
+    std::vector<std::uint32_t> orig_, start_, key_, scratch_;
+    int cols_ = 0, rows_ = 0;
+    std::size_t owned_ = 0, moves_ = 0;
+};
+
+// The neighbourhood Cell+Sorted supplies to the physics: no stored pairs; the counts of the
+// last density pass (every step but the initial force evaluation).
+struct SortedNeighbours {
+    CellSorted *grid = nullptr;
+    PairCounts counts;
+};
+
+// Branch-free quintic kernel: the same operations as QuinticKernel in the same order, the
+// absent pieces adding exact zeros; equal to rounding (tested; fused multiply-adds may differ).
+struct BranchFreeKernel {
+    double h, inv_h, alpha_d;
+    explicit BranchFreeKernel(const QuinticKernel &k)
+        : h(k.h), inv_h(1.0 / k.h), alpha_d(k.alpha_d) {}
+    static double pos(double v) { return std::max(v, 0.0); }
+    double value(double r) const {
+        const double q = r / h, a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
+        double w = a * a * a * a * a;
+        w -= 6 * (b * b * b * b * b);
+        w += 15 * (c * c * c * c * c);
+        return alpha_d * w;
+    }
+    double derivative(double r) const {
+        const double q = r / h, a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
+        double d = 0;
+        d -= 5 * (a * a * a * a);
+        d += 30 * (b * b * b * b);
+        d -= 75 * (c * c * c * c);
+        return alpha_d * d / h;
+    }
+};
+
+// The grid is the neighbourhood: building it is the sort already done by update().
+inline void build_neighbours(CellSorted &grid, const Particles &, const CellWindow &, double,
+                             SortedNeighbours &nb) {
+    nb.grid = &grid;
+}
+
+// The three drivers of the physics for Cell+Sorted (physics.hpp has them for stored lists).
+void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys);
+void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys);
+void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys);
+
+} // namespace sphperf::sph
