@@ -186,8 +186,11 @@ void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
             const double rhoj = v.rho[j];
             const double visc = -alpha_c0 * mu / (0.5 * (rhoi + rhoj));
             const double coef = v.mass[j] * (pi_rho2 + v.p[j] / (rhoj * rhoj) + visc);
-            ax.v[l] += act ? -coef * f * dx : 0.0;
-            ay.v[l] += act ? -coef * f * dy : 0.0;
+            // A multiplied mask, not a select: GCC turns the select into a conditional store
+            // here, which does not vectorise. Every term is finite, so 0 x term adds nothing.
+            const double mask = act ? 1.0 : 0.0;
+            ax.v[l] += mask * (-coef * f * dx);
+            ay.v[l] += mask * (-coef * f * dy);
         });
         p.ax[oi] = ax.total();
         p.ay[oi] = ay.total() - phys.gravity;
