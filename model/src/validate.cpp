@@ -275,15 +275,14 @@ std::string prediction_table(const json &p) {
 }
 
 std::string validation_table(const json &v) {
-    std::string s = fmt("  %-8s %-5s %5s %5s %3s %6s %10s %10s %8s %8s %8s %8s %8s %8s\n",
-                        "setup", "grid", "scale", "ranks", "thr", "steps", "measured", "predicted",
-                        "wall", "compute", "comm", "wait", "pairs", "peak RSS");
+    std::string s = fmt("  %-8s %-5s %5s %5s %3s %6s %10s %10s %8s %8s %8s %8s %8s %8s\n", "setup",
+                        "grid", "scale", "ranks", "thr", "steps", "measured", "predicted", "wall",
+                        "compute", "comm", "wait", "pairs", "peak RSS");
     for (const auto &r : v.at("configurations")) {
         const auto &ph = r.at("phases");
-        const std::string rss =
-            r.contains("peak_rss_bytes")
-                ? fmt("%+7.1f%%", 100 * d(r.at("peak_rss_bytes").at("error")))
-                : std::string("       -");
+        const std::string rss = r.contains("peak_rss_bytes")
+                                    ? fmt("%+7.1f%%", 100 * d(r.at("peak_rss_bytes").at("error")))
+                                    : std::string("       -");
         s += fmt("  %-8s %-5s %5g %5d %3d %6lld %9.2fs %9.2fs %+7.1f%% %+7.1f%% %+7.1f%% %+7.1f%% "
                  "%+7.1f%% %s\n",
                  r.at("setup").get<std::string>().c_str(), r.at("grid").get<std::string>().c_str(),

@@ -192,8 +192,7 @@ nlohmann::json prediction(double wall_s) {
         {"ranks", 1},
         {"oversubscribed", false},
         {"wall_s", wall_s},
-        {"memory",
-         {{"peak_rss_bytes_max_rank", 30e6}, {"thesis_bound_bytes_max_rank", 200e6}}},
+        {"memory", {{"peak_rss_bytes_max_rank", 30e6}, {"thesis_bound_bytes_max_rank", 200e6}}},
         {"totals", {{"compute_s", wall_s}, {"comm_s", 0}, {"wait_s", 0}, {"idle_s", 0}}},
         {"per_rank", {{{"pairs_per_step", 1000}, {"exported_per_step", 0}}}},
         {"intervals", {{{"ranks", {{{"comm_s", 0}, {"exported_regression", 0}}}}}}}};
