@@ -33,6 +33,14 @@ inline void check_report_path_on_root(const std::optional<std::filesystem::path>
     }
 }
 
+// Point-to-point benchmarks need a partner: a single rank is refused with the command to use.
+inline void require_ranks(const std::string &program, int size, int minimum = 2) {
+    if (size < minimum)
+        throw UsageError(program + " needs at least " + std::to_string(minimum) +
+                         " MPI ranks, got " + std::to_string(size) +
+                         " (run it with scripts/mpirun.sh -n " + std::to_string(minimum) + " ...)");
+}
+
 // MPI_Init, the body run(argc, argv, rank, size) under guarded_main (rank 0 alone prints), and
 // MPI_Finalize.
 template <class Run> int mpi_program(const char *name, int argc, char **argv, Run &&run) {

@@ -268,9 +268,7 @@ nlohmann::json point_json(const Point &p, int size, int cores) {
 int run(int argc, char **argv, int rank, int size) {
     const Topology topo;
     const Config cfg = parse(argc, argv);
-    if (size < 2)
-        throw UsageError("exchange needs at least 2 MPI ranks, got " + std::to_string(size) +
-                         " (run it with scripts/mpirun.sh -n 2 ...)");
+    require_ranks("exchange", size);
     check_report_path_on_root(cfg.json, rank);
 
     const int cores = topo.cores();

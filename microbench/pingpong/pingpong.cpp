@@ -421,9 +421,7 @@ int run(int argc, char **argv, int rank, int size) {
     const Topology topo;
     // Every rank parses the same arguments, so every rank reaches the same verdict.
     const Config cfg = parse(argc, argv);
-    if (size < 2)
-        throw UsageError("ping-pong needs at least 2 MPI ranks, got " + std::to_string(size) +
-                         " (run it with scripts/mpirun.sh -n 2 ...)");
+    require_ranks("ping-pong", size);
     check_report_path_on_root(cfg.json, rank);
 
     std::vector<RankInfo> ranks = gather_rank_info(topo, rank, size);

@@ -23,10 +23,9 @@ void CellSorted::update(const Particles &p, const CellWindow &w) {
         start_[c + 1] += start_[c];
     // Counting sort by cell, then by id within a cell (a few particles: insertion sort).
     orig_.resize(n);
-    std::vector<std::uint32_t> &fill = scratch_;
-    fill.assign(start_.begin(), start_.end() - 1);
+    fill_.assign(start_.begin(), start_.end() - 1);
     for (std::size_t i = 0; i < n; ++i)
-        orig_[fill[key_[i]]++] = static_cast<std::uint32_t>(i);
+        orig_[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
 #pragma omp parallel for schedule(dynamic, 64)
     for (std::size_t c = 0; c < cells; ++c) {
         const auto b = orig_.begin() + start_[c], e = orig_.begin() + start_[c + 1];
@@ -44,13 +43,13 @@ void CellSorted::update(const Particles &p, const CellWindow &w) {
         y_[s] = p.y[i];
         vx_[s] = p.vx[i];
         vy_[s] = p.vy[i];
-        rho_[s] = p.rho[i];
-        p_[s] = p.p[i];
         mass_[s] = p.mass[i];
         fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
         id_[s] = p.id[i];
     }
     moves_ = n; // every particle is filed anew each step
+    // Density and pressure are copied by refresh_density once they are final for the pass
+    // that reads them (the density pass reads neither).
 }
 
 void CellSorted::refresh_density(const Particles &p) {

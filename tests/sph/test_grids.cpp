@@ -152,18 +152,20 @@ TEST(CellSorted, DriversMatchTheStoredListDrivers) {
     }
     equation_of_state(p, phys);
     Particles q = p;
+    // Density rates and accelerations as Simulation computes them, through the grid's own
+    // neighbourhood type.
+    auto forces = [&](auto &grid, auto &nb, Particles &particles) {
+        grid.update(particles, window);
+        build_neighbours(grid, particles, window, cell, nb);
+        continuity(particles, nb, phys);
+        momentum(particles, nb, phys);
+    };
     CellTable table;
     NeighbourList nl;
-    table.update(p, window);
-    build_neighbours(table, p, window, cell, nl);
-    continuity(p, nl, phys);
-    momentum(p, nl, phys);
+    forces(table, nl, p);
     CellSorted sorted;
     SortedNeighbours nb;
-    sorted.update(q, window);
-    build_neighbours(sorted, q, window, cell, nb);
-    continuity(q, nb, phys);
-    momentum(q, nb, phys);
+    forces(sorted, nb, q);
     EXPECT_EQ(nb.counts.interactions, nl.counts.interactions);
     EXPECT_EQ(nb.counts.pairs, nl.counts.pairs);
     double scale_drho = 0, scale_a = 0;
@@ -193,7 +195,8 @@ TEST(CellSorted, BranchFreeKernelIsTheQuinticKernel) {
         const double r = n * 1e-3 * k.h; // 0 .. 4h, whole radii and the support edge included
         EXPECT_NEAR(b.value(r), k.value(r), 1e-14 * w_scale) << r;
         EXPECT_NEAR(b.derivative(r), k.derivative(r), 1e-14 * d_scale) << r;
-        if (r >= k.support())
+        if (r >= k.support()) {
             EXPECT_EQ(b.value(r), 0.0) << r; // exactly nothing beyond the support
+        }
     }
 }

@@ -47,7 +47,8 @@ public:
              s < start_[static_cast<std::size_t>(k) + 1]; ++s)
             f(orig_[s]);
     }
-    // Densities and pressures changed since the sort (continuity, equation of state, Shepard).
+    // Copies density and pressure, which the sort leaves out: they change between the sort and
+    // the passes that read them (continuity, equation of state, Shepard).
     void refresh_density(const Particles &p);
     View view() const;
 
@@ -57,7 +58,7 @@ private:
     }
     std::vector<double> x_, y_, vx_, vy_, rho_, p_, mass_, fluid_;
     std::vector<std::int64_t> id_;
-    std::vector<std::uint32_t> orig_, start_, key_, scratch_;
+    std::vector<std::uint32_t> orig_, start_, key_, fill_;
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
 };
