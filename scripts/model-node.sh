@@ -32,12 +32,14 @@ sph() { # sph RANKS NAME ARGS...: one measured run, 1 thread per rank, inline Ho
     printf '  %-28s %4d s\n' "$name" $((SECONDS - t0))
 }
 
-# Validation steps per setup and scale, and calibration reach: the half-scale calibration must
-# cover the validation's simulated time in Froude time, t_cal = t_val sqrt(0.5 / scale).
+# Validation steps per setup and scale, and calibration reach. The half-scale calibration must
+# cover the validation's flow in Froude time (t_cal >= t_val sqrt(0.5 / scale)) and its
+# particles' memory order in simulated time (t_cal >= t_val, model/README.md "Memory order"):
+# the second is the longer one.
 if [ "$quick" -eq 1 ]; then
-    v_steps=200 v2_steps=40 vs_steps=40 c_steps=150 cs_steps=40 interval=20 c_interval=10
+    v_steps=200 v2_steps=40 vs_steps=40 c_steps=200 cs_steps=40 interval=20 c_interval=10
 else
-    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1080 cs_steps=220 interval=100 c_interval=20
+    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 cs_steps=300 interval=100 c_interval=20
 fi
 
 # Calibration runs in two rounds, one before the validation runs and one amid them: the machine's

@@ -22,6 +22,10 @@ double RankWork::value(const std::string &term) const {
         return ghost;
     if (term == "cell_moves")
         return cell_moves;
+    if (term == "walls")
+        return walls;
+    if (term == "descents")
+        return descents;
     throw std::invalid_argument("unknown cost term " + term);
 }
 
@@ -42,7 +46,7 @@ std::vector<Point> points_of(const SphRun &run, int index) {
             if (r.steps < 1)
                 continue;
             Point p;
-            p.work = {r.field_mean, r.virtual_, r.ghost, r.interactions, r.cell_moves};
+            p.work = {r.field_mean, r.virtual_, r.ghost, r.interactions, r.cell_moves, r.descents};
             p.pairs = r.pairs;
             p.exported = r.exported;
             p.compute_s_per_step = r.compute_s() / r.steps;
@@ -83,7 +87,8 @@ template <class Y> json regression(const std::vector<Point> &pts, Y y) {
 // costs all come out non-negative is scored by leave-one-run-out cross-validation; the best is
 // kept, the scores are reported.
 json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs) {
-    const std::vector<std::string> optional{"const", "owned", "ghost", "cell_moves"};
+    const std::vector<std::string> optional{"const", "owned",      "walls",
+                                            "ghost", "cell_moves", "descents"};
     json candidates = json::array();
     double best_cv = std::numeric_limits<double>::infinity();
     std::vector<std::string> best;
@@ -176,6 +181,34 @@ json cell_move_fit(const std::vector<Point> &pts) {
             X.push_back({p.work.field, p.work.walls, 1.0});
         return fit_linear(X, y, {"field", "walls", "const"}).to_json();
     }
+}
+
+// Per setup and grid (each grid visits candidates in its own order), the memory-order decay of
+// the stored-list runs reaching furthest in simulated time (the mean of those with the same
+// record times: rounds of the same configuration).
+json disorder_by_setup(const std::vector<SphRun> &runs) {
+    std::map<std::pair<std::string, std::string>, std::vector<SphRun>> longest;
+    auto end_of = [](const SphRun &r) { return r.intervals.back().time_s; };
+    for (const auto &r : runs) {
+        if (r.config.grid != "list" && r.config.grid != "table")
+            continue;
+        auto &v = longest[{r.config.setup, r.config.grid}];
+        if (!v.empty() && end_of(r) > end_of(v.front()) * (1 + 1e-9))
+            v.clear();
+        if (v.empty() || (r.intervals.size() == v.front().intervals.size() &&
+                          std::abs(end_of(r) - end_of(v.front())) <= 1e-9 * end_of(r) &&
+                          r.config.delta == v.front().config.delta))
+            v.push_back(r);
+    }
+    json out = json::object();
+    for (const auto &[key, v] : longest) {
+        json d = disorder_of(v).to_json();
+        d["method"] = "descents per interaction summed over ranks, mean of the runs; predict "
+                      "reads it at the target's simulated time (acoustic time for another "
+                      "spacing), not at its Froude time";
+        out[key.first][key.second] = d;
+    }
+    return out;
 }
 
 json roofline(const json &machine, const std::vector<SphRun> &runs) {
@@ -364,6 +397,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     model["roofline"] = roofline(machine, runs);
     model["memory"] = memory_model(runs);
     model["traces"] = traces;
+    model["disorder"] = disorder_by_setup(runs);
     return model;
 }
 

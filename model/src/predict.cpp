@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace sphperf::model {
 
@@ -19,6 +20,8 @@ constexpr double shifts_per_step = 3; // migration, ghosts, density refresh
 
 struct Costs {
     LinearFit pairs, exports, interactions, compute, cell_moves;
+    std::optional<Disorder> disorder; // list and table: memory order against simulated time
+    double delta = 0.01;              // target spacing (acoustic time of the disorder record)
     CommModel comm;
     ExchangeModel exchange; // empty: the shifts are costed message by message with Hockney
     double record_bytes = 72;
@@ -58,6 +61,21 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         if (!model.at("cell_moves").contains(grid))
             throw UsageError("the model has no cell-move fit for grid " + grid);
         c.cell_moves = LinearFit::from_json(model.at("cell_moves").at(grid), "model cell_moves");
+        const bool needs_disorder = std::find(c.compute.terms.begin(), c.compute.terms.end(),
+                                              "descents") != c.compute.terms.end();
+        if (needs_disorder) {
+            if (!model.contains("disorder") || !model.at("disorder").contains(setup) ||
+                !model.at("disorder").at(setup).contains(grid))
+                throw UsageError("the compute cost of grid " + grid +
+                                 " has a memory-order term but the model has no memory-order "
+                                 "record of setup '" +
+                                 setup +
+                                 "' on that grid: calibrate with "
+                                 "a " +
+                                 grid + " run of it");
+            c.disorder = Disorder::from_json(model.at("disorder").at(setup).at(grid),
+                                             "model disorder " + setup + "/" + grid);
+        }
         c.comm = CommModel::from_profile(model.at("machine"));
         c.exchange = ExchangeModel::from_profile(model.at("machine"));
         c.record_bytes = model.at("record_bytes").get<double>();
@@ -84,9 +102,10 @@ struct RankStep {
            interactions = 0, compute_s = 0, comm_s = 0, wait_s = 0, idle_s = 0;
 };
 
-// One step of every rank, from the workload of the slabs.
+// One step of every rank at simulated time t, from the workload of the slabs.
 std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Costs &c, int threads,
-                                   double &step_s) {
+                                   double t, double &step_s) {
+    const double disorder = c.disorder ? c.disorder->at(t, c.delta) : 0.0;
     const int P = static_cast<int>(loads.size());
     const bool shared = P * threads > c.cores;
     auto pu = [&](int r) { return shared || r < 0 || r >= P ? -1 : r * threads; };
@@ -109,7 +128,8 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
                          : t == "ghost" ? l.ghost
                                         : 1.0);
         const double moves = std::max(0.0, c.cell_moves.predict(xm));
-        const RankWork w{l.field, l.walls, l.ghost, s.interactions, moves};
+        const RankWork w{l.field,        l.walls, l.ghost,
+                         s.interactions, moves,   s.interactions * disorder};
         std::vector<double> x;
         for (const auto &t : c.compute.terms)
             x.push_back(w.value(t));
@@ -175,6 +195,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     const Trace trace = Trace::from_json(model["traces"][req.setup], "model trace " + req.setup);
     const Costs costs = costs_of(model, req.setup, req.grid, req.threads);
     Costs c = costs;
+    c.delta = req.delta;
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
@@ -183,9 +204,12 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     const std::int64_t steps =
         req.steps ? *req.steps
                   : static_cast<std::int64_t>(std::ceil(*req.end_time / req.dt - 1e-9));
-    // Refuse up front when the trace is too short, naming the time needed.
+    // Refuse up front when the trace or the memory-order record is too short, naming the time
+    // needed.
     (void)histogram_at(trace,
                        source_time(static_cast<double>(steps) * req.dt, trace.scale, req.scale));
+    if (c.disorder)
+        (void)c.disorder->at(static_cast<double>(steps) * req.dt, req.delta);
 
     json out = header;
     out["request"] = {{"setup", req.setup},     {"grid", req.grid},
@@ -223,7 +247,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                     tgt.tank_length, tgt.columns, tgt.fluid_particles);
                 double step_s = 0;
                 const auto ranks =
-                    predict_step(recut(cols, tgt.wall_columns, P), c, req.threads, step_s);
+                    predict_step(recut(cols, tgt.wall_columns, P), c, req.threads, t, step_s);
                 step_mean += step_s / samples_per_interval;
                 for (std::size_t r = 0; r < ranks.size(); ++r) {
                     auto &m = mean[r];

@@ -44,6 +44,8 @@ void from_json(const json &j, RankStats &r) {
     // Reports before the exchange benchmark predicted by Hockney alone.
     r.comm_hockney_s =
         j.contains("comm_hockney_s") ? figure(j, "comm_hockney_s") : r.comm_predict_s;
+    // Reports before the memory-order count: 0, as for the sorted grid (the term then drops).
+    r.descents = j.contains("descents") ? figure(j, "descents") : 0.0;
     for (const auto &[k, v] : j.at("timers").items()) {
         r.timers[k] = v.get<double>();
         check_figure(r.timers[k], "timers/" + k);

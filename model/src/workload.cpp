@@ -195,3 +195,75 @@ std::vector<SlabLoad> recut(const std::vector<double> &fluid, const std::vector<
 }
 
 } // namespace sphperf::model
+
+namespace sphperf::model {
+
+double Disorder::at(double time_s, double target_delta) const {
+    // Acoustic time (spacing / sound speed, the sound speed fixed by the setup) maps a run at
+    // another spacing onto the measured one.
+    const double t = time_s * delta / target_delta;
+    if (times_s.empty())
+        return 0.0;
+    if (t > times_s.back() * (1 + 1e-9))
+        throw UsageError("the model's memory-order record (" + source + ") ends at " +
+                         num(times_s.back()) + " s of simulated time, this prediction needs " +
+                         num(t) + " s: calibrate with a list or table run that long");
+    const auto it = std::lower_bound(times_s.begin(), times_s.end(), t);
+    if (it == times_s.begin())
+        return per_interaction.front();
+    if (it == times_s.end())
+        return per_interaction.back();
+    const auto k = static_cast<std::size_t>(it - times_s.begin());
+    const double w = (t - times_s[k - 1]) / (times_s[k] - times_s[k - 1]);
+    return per_interaction[k - 1] + w * (per_interaction[k] - per_interaction[k - 1]);
+}
+
+nlohmann::json Disorder::to_json() const {
+    return {{"source", source},
+            {"delta", delta},
+            {"times_s", times_s},
+            {"descents_per_interaction", per_interaction}};
+}
+
+Disorder Disorder::from_json(const nlohmann::json &j, const std::string &where) {
+    Disorder d;
+    try {
+        d.source = j.value("source", "");
+        d.delta = j.at("delta").get<double>();
+        d.times_s = j.at("times_s").get<std::vector<double>>();
+        d.per_interaction = j.at("descents_per_interaction").get<std::vector<double>>();
+    } catch (const nlohmann::json::exception &e) {
+        throw UsageError(where + ": " + e.what());
+    }
+    if (d.times_s.size() != d.per_interaction.size() || !(d.delta > 0) ||
+        !std::is_sorted(d.times_s.begin(), d.times_s.end()))
+        throw UsageError(where + ": needs as many values as increasing times and delta > 0");
+    return d;
+}
+
+Disorder disorder_of(const std::vector<SphRun> &runs) {
+    Disorder d;
+    if (runs.empty())
+        return d;
+    const SphRun &first = runs.front();
+    d.delta = first.config.delta;
+    for (const auto &iv : first.intervals)
+        d.times_s.push_back(iv.time_s);
+    d.per_interaction.assign(d.times_s.size(), 0.0);
+    for (const auto &r : runs) {
+        if (r.intervals.size() != d.times_s.size())
+            throw std::invalid_argument("disorder_of: runs with different record times");
+        d.source += (d.source.empty() ? "" : ", ") + r.path;
+        for (std::size_t k = 0; k < r.intervals.size(); ++k) {
+            double desc = 0, inter = 0;
+            for (const auto &rk : r.intervals[k].ranks) {
+                desc += rk.descents;
+                inter += rk.interactions;
+            }
+            d.per_interaction[k] += (inter > 0 ? desc / inter : 0.0) / double(runs.size());
+        }
+    }
+    return d;
+}
+
+} // namespace sphperf::model

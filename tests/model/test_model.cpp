@@ -139,6 +139,42 @@ TEST(Workload, TraceInterpolatesAndRefusesToExtrapolate) {
     }
 }
 
+TEST(Workload, DisorderFollowsSimulatedTimeAndAcousticTimeForAnotherSpacing) {
+    // Two runs with the same record times: the record is their mean of descents per
+    // interaction summed over ranks.
+    auto run = [](double d1, double d2) {
+        SphRun r;
+        r.path = "r.json";
+        r.config.delta = 0.01;
+        for (auto [t, d] : {std::pair{0.1, d1}, {0.2, d2}}) {
+            IntervalStats iv;
+            iv.time_s = t;
+            RankStats a, b;
+            a.interactions = 300;
+            a.descents = 300 * d;
+            b.interactions = 100;
+            b.descents = 100 * d;
+            iv.ranks = {a, b};
+            r.intervals.push_back(iv);
+        }
+        return r;
+    };
+    const Disorder d = disorder_of({run(0.1, 0.3), run(0.2, 0.5)});
+    EXPECT_NEAR(d.at(0.1, 0.01), 0.15, 1e-12);
+    EXPECT_NEAR(d.at(0.15, 0.01), 0.275, 1e-12);
+    EXPECT_NEAR(d.at(0.05, 0.01), 0.15, 1e-12); // before the first record: its value
+    // At twice the spacing the acoustic time runs half as fast: 0.3 s there is 0.15 s here.
+    EXPECT_NEAR(d.at(0.3, 0.02), 0.275, 1e-12);
+    const Disorder back = Disorder::from_json(d.to_json(), "test");
+    EXPECT_EQ(back.per_interaction, d.per_interaction);
+    try {
+        (void)d.at(0.25, 0.01);
+        FAIL() << "no error past the record";
+    } catch (const UsageError &e) {
+        EXPECT_NE(std::string(e.what()).find("needs 0.25 s"), std::string::npos) << e.what();
+    }
+}
+
 namespace {
 nlohmann::json two_piece_profile() {
     auto piece = [](double a, double b, double lo, double hi) {

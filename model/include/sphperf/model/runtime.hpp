@@ -30,10 +30,11 @@ inline constexpr InteractionCost interaction_costs[] = {
 };
 
 // The cost of one rank's step from its work counts; the terms the fit may use.
-inline constexpr const char *cost_terms[] = {"const", "interactions", "owned", "ghost",
-                                             "cell_moves"};
+inline constexpr const char *cost_terms[] = {"const", "interactions", "owned",   "walls",
+                                             "ghost", "cell_moves",   "descents"};
 struct RankWork {
     double field = 0, walls = 0, ghost = 0, interactions = 0, cell_moves = 0;
+    double descents = 0; // the id sort's work (list and table), see Disorder
     double value(const std::string &term) const;
 };
 

@@ -14,6 +14,7 @@ struct RankStats {
     double steps = 0, field = 0, field_mean = 0, virtual_ = 0, ghost = 0, pairs = 0;
     double interactions = 0, exported = 0, migrated = 0, cell_moves = 0, idle_s = 0;
     double messages = 0, message_bytes = 0, comm_predict_s = 0, comm_hockney_s = 0;
+    double descents = 0; // neighbours found out of id order per step (the id sort's work)
     std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
 
     double timer(const std::string &key) const;

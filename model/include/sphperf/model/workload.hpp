@@ -63,4 +63,22 @@ struct SlabLoad {
 std::vector<SlabLoad> recut(const std::vector<double> &fluid_columns,
                             const std::vector<double> &wall_columns, int ranks);
 
+// How far the particles' memory order has decayed from the initial lattice, as the stored-list
+// grids see it: neighbours found out of id order per interaction (the id sort's work, and the
+// scattered reads of the candidate scan). Measured at scales 0.5, 1 and 2 it is one function of
+// simulated time, not of Froude time: the order decays with the particles' jitter on the
+// acoustic time scale (spacing / sound speed, the same at every scale here), not with the flow.
+struct Disorder {
+    std::string source;
+    double delta = 0.01; // spacing of the runs it was measured in
+    std::vector<double> times_s, per_interaction;
+    // Linear in time between records; throws UsageError naming the time needed past the end.
+    double at(double time_s, double target_delta) const;
+    nlohmann::json to_json() const;
+    static Disorder from_json(const nlohmann::json &j, const std::string &where);
+};
+// Mean over the given runs (same setup, list or table grid, identical record times) of the
+// descents per interaction summed over ranks, at t = 0 taken equal to the first record.
+Disorder disorder_of(const std::vector<SphRun> &runs);
+
 } // namespace sphperf::model

@@ -13,13 +13,15 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
     const int threads = omp_get_max_threads();
     // Each thread fills its own list for a contiguous block of particles, then the blocks are
     // concatenated in order: deterministic and free of atomics.
-    std::vector<std::vector<std::uint32_t>> parts(static_cast<std::size_t>(threads));
-    std::uint64_t pairs = 0;
-#pragma omp parallel num_threads(threads) reduction(+ : pairs)
+    auto &parts = nl.blocks;
+    parts.resize(static_cast<std::size_t>(threads));
+    std::uint64_t pairs = 0, descents = 0;
+#pragma omp parallel num_threads(threads) reduction(+ : pairs, descents)
     {
         auto &mine = parts[static_cast<std::size_t>(omp_get_thread_num())];
+        mine.clear();
         // (id, index) side by side: the sort compares contiguous keys, no gather through p.id.
-        std::vector<std::pair<std::int64_t, std::uint32_t>> local;
+        thread_local std::vector<std::pair<std::int64_t, std::uint32_t>> local;
 #pragma omp for schedule(static)
         for (std::size_t i = 0; i < owned; ++i) {
             local.clear();
@@ -36,6 +38,8 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
                         if (dx * dx + dy * dy < r2max)
                             local.emplace_back(p.id[j], j);
                     });
+            for (std::size_t k = 1; k < local.size(); ++k)
+                descents += local[k].first < local[k - 1].first ? 1 : 0;
             std::sort(local.begin(), local.end());
             const std::int64_t id_i = p.id[i];
             for (const auto &[id_j, j] : local)
@@ -52,7 +56,7 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
     nl.index.reserve(nl.offsets[owned]);
     for (const auto &part : parts)
         nl.index.insert(nl.index.end(), part.begin(), part.end());
-    return {pairs, nl.index.size()};
+    return {pairs, nl.index.size(), descents};
 }
 
 } // namespace sphperf::sph

@@ -13,12 +13,16 @@ namespace sphperf::sph {
 struct PairCounts {
     std::uint64_t pairs = 0;        // unordered pairs within 3h with at least one fluid particle
     std::uint64_t interactions = 0; // ordered pairs (i, j) contributing to an owned particle i
+    std::uint64_t descents = 0;     // stored lists: neighbours found after one of larger id
 };
 
 struct NeighbourList {
     std::vector<std::uint32_t> offsets; // size owned + 1
     std::vector<std::uint32_t> index;   // neighbour indices, offsets[i] .. offsets[i + 1]
     PairCounts counts;                  // of the last search
+    // Search scratch kept across steps (one block per thread): no allocation or page fault in
+    // the search once the lists have reached their size.
+    std::vector<std::vector<std::uint32_t>> blocks;
 
     std::size_t particles() const { return offsets.empty() ? 0 : offsets.size() - 1; }
     std::size_t interactions() const { return index.size(); }

@@ -28,9 +28,11 @@ struct RankInterval {
     double message_bytes = 0;  // their payload bytes, total
     double comm_predict_s = 0; // predicted time of those transfers (sph --machine), total
     double comm_hockney_s = 0; // ... by ping-pong Hockney alone (thesis T_COMM_PREDICT)
+    double descents = 0;       // neighbours found right after one of larger id (id sort work):
+                               // grows as the particles' memory order decays; 0 for sorted
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
 
-    static constexpr std::size_t fields = 17 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 18 + static_cast<std::size_t>(Phase::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };
