@@ -278,7 +278,7 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
 // interactions, the last two counted from our data structures (model/README.md), the fixed part
 // (MPI, OpenMP and libraries) the median residual of the calibration runs.
 constexpr double bytes_per_particle = 10 * 8 + 8 + 1 + 4 + 8 + 4; // SoA + id + kind + list/grid
-constexpr double bytes_per_interaction = 2 * 4 + 16;              // list + per-thread + sort
+constexpr double bytes_per_interaction = 4 + 2 * 4 + 4; // list, per-thread block (2x capacity)
 json memory_model(const std::vector<SphRun> &runs) {
     std::vector<double> fixed;
     for (const auto &r : runs)

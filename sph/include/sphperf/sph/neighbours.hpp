@@ -14,6 +14,7 @@ struct PairCounts {
     std::uint64_t pairs = 0;        // unordered pairs within 3h with at least one fluid particle
     std::uint64_t interactions = 0; // ordered pairs (i, j) contributing to an owned particle i
     std::uint64_t descents = 0;     // stored lists: neighbours found after one of larger id
+    double sort_s = 0;              // stored lists: time spent ordering them by id
 };
 
 struct NeighbourList {
