@@ -46,7 +46,7 @@ fi
 # speed drifts by 10-35 % over minutes, and the model takes the median run's level.
 calibrate_round() { # calibrate_round LABEL
     local t0=$SECONDS grid
-    for grid in table list; do
+    for grid in table list sorted; do
         sph 2 "cal_dambreak_s0.5_${grid}_$1" --setup dambreak --scale 0.5 --grid "$grid" \
             --steps "$c_steps" --interval "$c_interval"
         sph 2 "cal_still_s0.5_${grid}_$1" --setup still --scale 0.5 --grid "$grid" \
@@ -62,7 +62,7 @@ validate_run() { # validate_run RANKS NAME ARGS...
     val_s=$((val_s + SECONDS - t0))
 }
 
-echo "== calibration round a: half-scale runs, 2 ranks, both grids"
+echo "== calibration round a: half-scale runs, 2 ranks, all three grids"
 calibrate_round a
 echo "== validation runs (configurations calibration never ran), first half"
 for r in 1 2 3 4; do
@@ -86,6 +86,10 @@ validate_run 3 val_still_s1_table_r3 --setup still --grid table --steps "$vs_ste
     --interval "$interval"
 validate_run 2 val_still_s1_list_r2 --setup still --grid list --steps "$vs_steps" \
     --interval "$interval"
+validate_run 2 val_dambreak_s1_sorted_r2 --setup dambreak --grid sorted --steps "$v_steps" \
+    --interval "$interval"
+validate_run 3 val_still_s1_sorted_r3 --setup still --grid sorted --steps "$vs_steps" \
+    --interval "$interval"
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
 echo "== calibration"
@@ -104,6 +108,8 @@ predict dambreak_s1_list --setup dambreak --grid list --scale 1 --ranks 1,2,3 --
 predict dambreak_s2_table --setup dambreak --grid table --scale 2 --ranks 2,4 --steps "$v2_steps"
 predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps "$vs_steps"
 predict still_s1_list --setup still --grid list --scale 1 --ranks 2 --steps "$vs_steps"
+predict dambreak_s1_sorted --setup dambreak --grid sorted --scale 1 --ranks 2 --steps "$v_steps"
+predict still_s1_sorted --setup still --grid sorted --scale 1 --ranks 3 --steps "$vs_steps"
 
 echo "== validation"
 "$build/bin/sphmodel" validate --prediction "$out"/prediction_*.json --measured "$runs"/val_*.json \

@@ -279,22 +279,41 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
 // (MPI, OpenMP and libraries) the median residual of the calibration runs.
 constexpr double bytes_per_particle = 10 * 8 + 8 + 1 + 4 + 8 + 4; // SoA + id + kind + list/grid
 constexpr double bytes_per_interaction = 4 + 2 * 4 + 4; // list, per-thread block (2x capacity)
+// Cell+Sorted stores no pairs and no list offsets, but a cell-ordered copy of every particle:
+// x, y, vx, vy, rho, p, mass, fluid (8 doubles), id, original index and cell key.
+constexpr double sorted_bytes_per_particle = bytes_per_particle - 4 + 8 * 8 + 8 + 4 + 4;
+struct MemoryCounts {
+    double per_particle, per_interaction;
+};
+MemoryCounts memory_counts(const std::string &grid) {
+    if (grid == "sorted")
+        return {sorted_bytes_per_particle, 0.0};
+    return {bytes_per_particle, bytes_per_interaction};
+}
 json memory_model(const std::vector<SphRun> &runs) {
     std::vector<double> fixed;
     for (const auto &r : runs)
         for (std::size_t k = 0; k < r.peak_rss_bytes.size(); ++k) {
+            const MemoryCounts mc = memory_counts(r.config.grid);
             double particles = 0, interactions = 0;
             for (const auto &iv : r.intervals) {
                 const auto &rk = iv.ranks[k];
                 particles = std::max(particles, rk.field + rk.virtual_ + rk.ghost);
                 interactions = std::max(interactions, rk.interactions);
             }
-            fixed.push_back(r.peak_rss_bytes[k] - bytes_per_particle * particles -
-                            bytes_per_interaction * interactions);
+            fixed.push_back(r.peak_rss_bytes[k] - mc.per_particle * particles -
+                            mc.per_interaction * interactions);
         }
     std::sort(fixed.begin(), fixed.end());
+    json grids = json::object();
+    for (const char *g : {"list", "table", "sorted"}) {
+        const MemoryCounts mc = memory_counts(g);
+        grids[g] = {{"bytes_per_particle", mc.per_particle},
+                    {"bytes_per_interaction", mc.per_interaction}};
+    }
     return {{"bytes_per_particle", bytes_per_particle},
             {"bytes_per_interaction", bytes_per_interaction},
+            {"grids", grids},
             {"fixed_bytes", fixed.empty() ? 0.0 : fixed[fixed.size() / 2]}};
 }
 } // namespace

@@ -82,8 +82,12 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         c.cores = model.at("machine").at("cores").get<int>();
         if (model.contains("memory")) {
             const auto &mem = model.at("memory");
-            c.bytes_per_particle = mem.at("bytes_per_particle").get<double>();
-            c.bytes_per_interaction = mem.at("bytes_per_interaction").get<double>();
+            // Per grid when the model has it (Cell+Sorted stores a copy, no pairs).
+            const auto &m = mem.contains("grids") && mem.at("grids").contains(grid)
+                                ? mem.at("grids").at(grid)
+                                : mem;
+            c.bytes_per_particle = m.at("bytes_per_particle").get<double>();
+            c.bytes_per_interaction = m.at("bytes_per_interaction").get<double>();
             c.fixed_bytes = mem.at("fixed_bytes").get<double>();
         }
     } catch (const json::exception &e) {
