@@ -49,7 +49,7 @@ def roofline(model, out):
 
 
 def scaling(predictions, validation, out):
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4))
     measured = {}
     for r in validation["configurations"]:
         measured[(r["setup"], r["grid"], r["scale"], r["ranks"])] = r["measured_wall_s"]
@@ -79,7 +79,9 @@ def scaling(predictions, validation, out):
     for ax in axes:
         ax.set_xlabel("ranks (1 thread each; above 2 they share the 2 cores)")
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=6)
+    # One legend, outside the panels, so that it hides no point.
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[2].legend(handles, labels, fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.suptitle("Predicted (lines) and measured (dots) wall time, speed-up, efficiency (thesis Fig. 4.9)")
     fig.tight_layout()
     fig.savefig(out, dpi=110)
@@ -146,7 +148,7 @@ def regressions(model, runs_dir, out):
 
 
 def comm_error(validation, out):
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig, ax = plt.subplots(figsize=(13, 5))
     for r in validation["configurations"]:
         s = r["comm_series"]
         if r["ranks"] < 2 or not s:
@@ -165,7 +167,8 @@ def comm_error(validation, out):
     ax.set_ylabel("communication prediction error (%)")
     ax.set_yscale("symlog", linthresh=100)
     ax.set_title("Communication prediction error per interval (thesis Fig. 4.11)")
-    ax.legend(fontsize=6, ncol=2)
+    # Outside the axes: with a dozen configurations a legend inside hides the lines.
+    ax.legend(fontsize=6, ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)

@@ -66,13 +66,9 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         if (needs_disorder) {
             if (!model.contains("disorder") || !model.at("disorder").contains(setup) ||
                 !model.at("disorder").at(setup).contains(grid))
-                throw UsageError("the compute cost of grid " + grid +
-                                 " has a memory-order term but the model has no memory-order "
-                                 "record of setup '" +
-                                 setup +
-                                 "' on that grid: calibrate with "
-                                 "a " +
-                                 grid + " run of it");
+                throw UsageError("the compute cost of grid " + grid + " has a memory-order " +
+                                 "term but the model has no memory-order record of setup '" +
+                                 setup + "' on that grid: calibrate with a " + grid + " run of it");
             c.disorder = Disorder::from_json(model.at("disorder").at(setup).at(grid),
                                              "model disorder " + setup + "/" + grid);
         }

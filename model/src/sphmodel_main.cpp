@@ -47,8 +47,12 @@ int run(int argc, char **argv) {
     pre->add_option("--model", o.model, "model.json (sphmodel calibrate)")
         ->required()
         ->check(CLI::ExistingFile);
-    pre->add_option("--setup", q.setup, "dambreak, still or column")->capture_default_str();
-    pre->add_option("--grid", q.grid, "list or table")->capture_default_str();
+    pre->add_option("--setup", q.setup, "Setup")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"dambreak", "still", "column"}));
+    pre->add_option("--grid", q.grid, "Cell grid scheme")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"list", "table", "sorted"}));
     pre->add_option("--scale", q.scale, "Geometry scale")
         ->capture_default_str()
         ->check(Finite & CLI::PositiveNumber);

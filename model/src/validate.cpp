@@ -68,6 +68,15 @@ json validate(const json &header, const std::vector<json> &predictions,
             }
         const double steps = static_cast<double>(std::max<std::int64_t>(m.config.steps, 1));
         const auto &pt = p->at("totals");
+        // One phase's measured and predicted seconds and the relative error.
+        auto phase = [&](const char *key, double measured) {
+            const double predicted = pt.at(key).get<double>();
+            return json{{"measured_s", measured},
+                        {"predicted_s", predicted},
+                        {"error", rel(predicted, measured)}};
+        };
+        json comm_phase = phase("comm_s", comm);
+        comm_phase["inline_s"] = inline_c;
         double p_pairs = 0, p_exp = 0;
         for (const auto &r : p->at("per_rank")) {
             p_pairs += r.at("pairs_per_step").get<double>();
@@ -128,23 +137,10 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"predicted_wall_s", p->at("wall_s")},
                  {"wall_error", err},
                  {"phases",
-                  {{"compute",
-                    {{"measured_s", compute},
-                     {"predicted_s", pt.at("compute_s")},
-                     {"error", rel(pt.at("compute_s").get<double>(), compute)}}},
-                   {"comm",
-                    {{"measured_s", comm},
-                     {"predicted_s", pt.at("comm_s")},
-                     {"inline_s", inline_c},
-                     {"error", rel(pt.at("comm_s").get<double>(), comm)}}},
-                   {"wait",
-                    {{"measured_s", wait},
-                     {"predicted_s", pt.at("wait_s")},
-                     {"error", rel(pt.at("wait_s").get<double>(), wait)}}},
-                   {"idle",
-                    {{"measured_s", idle},
-                     {"predicted_s", pt.at("idle_s")},
-                     {"error", rel(pt.at("idle_s").get<double>(), idle)}}}}},
+                  {{"compute", phase("compute_s", compute)},
+                   {"comm", comm_phase},
+                   {"wait", phase("wait_s", wait)},
+                   {"idle", phase("idle_s", idle)}}},
                  {"pairs_per_step",
                   {{"counted", pairs / steps},
                    {"predicted", p_pairs},

@@ -139,6 +139,25 @@ std::vector<double> rescale_columns(const std::vector<double> &source, double so
     return out;
 }
 
+namespace {
+// Where t falls among increasing record times: records lo and hi and the weight of hi (lo == hi
+// before the first record and after the last).
+struct Bracket {
+    std::size_t lo = 0, hi = 0;
+    double w = 0;
+};
+Bracket bracket(const std::vector<double> &times, double t) {
+    const auto k =
+        static_cast<std::size_t>(std::lower_bound(times.begin(), times.end(), t) - times.begin());
+    if (k == 0)
+        return {0, 0, 0.0};
+    if (k >= times.size())
+        return {times.size() - 1, times.size() - 1, 0.0};
+    const double t0 = times[k - 1], t1 = times[k];
+    return {k - 1, k, t1 > t0 ? (t - t0) / (t1 - t0) : 1.0};
+}
+} // namespace
+
 std::vector<double> histogram_at(const Trace &trace, double t) {
     constexpr double tolerance = 1e-9;
     if (t > trace.end_time() + tolerance)
@@ -146,17 +165,10 @@ std::vector<double> histogram_at(const Trace &trace, double t) {
                          " s of simulated time at scale " + num(trace.scale) +
                          ", but the calibration recorded only " + num(trace.end_time()) +
                          " s: calibrate with a run reaching --end-time " + num(t));
-    const auto it = std::lower_bound(trace.times_s.begin(), trace.times_s.end(), t);
-    const auto k = static_cast<std::size_t>(it - trace.times_s.begin());
-    if (k == 0)
-        return trace.columns.front();
-    if (k >= trace.times_s.size())
-        return trace.columns.back();
-    const double t0 = trace.times_s[k - 1], t1 = trace.times_s[k];
-    const double w = t1 > t0 ? (t - t0) / (t1 - t0) : 1.0;
-    std::vector<double> h(trace.columns[k].size());
+    const auto [lo, hi, w] = bracket(trace.times_s, t);
+    std::vector<double> h(trace.columns[hi].size());
     for (std::size_t c = 0; c < h.size(); ++c)
-        h[c] = (1 - w) * trace.columns[k - 1][c] + w * trace.columns[k][c];
+        h[c] = (1 - w) * trace.columns[lo][c] + w * trace.columns[hi][c];
     return h;
 }
 
@@ -208,14 +220,8 @@ double Disorder::at(double time_s, double target_delta) const {
         throw UsageError("the model's memory-order record (" + source + ") ends at " +
                          num(times_s.back()) + " s of simulated time, this prediction needs " +
                          num(t) + " s: calibrate with a list or table run that long");
-    const auto it = std::lower_bound(times_s.begin(), times_s.end(), t);
-    if (it == times_s.begin())
-        return per_interaction.front();
-    if (it == times_s.end())
-        return per_interaction.back();
-    const auto k = static_cast<std::size_t>(it - times_s.begin());
-    const double w = (t - times_s[k - 1]) / (times_s[k] - times_s[k - 1]);
-    return per_interaction[k - 1] + w * (per_interaction[k] - per_interaction[k - 1]);
+    const auto [lo, hi, w] = bracket(times_s, t);
+    return (1 - w) * per_interaction[lo] + w * per_interaction[hi];
 }
 
 nlohmann::json Disorder::to_json() const {

@@ -159,6 +159,7 @@ INSTANTIATE_TEST_SUITE_P(
                       "pairs"},
         BadModelInput{"unknown_setup", "predict --model MODEL --setup tsunami --steps 10",
                       "tsunami"},
+        BadModelInput{"unknown_grid", "predict --model MODEL --grid octree --steps 10", "octree"},
         BadModelInput{"too_many_ranks", "predict --model MODEL --scale 0.5 --ranks 2,99 --steps 10",
                       "99 ranks exceed"},
         BadModelInput{"trace_too_short", "predict --model MODEL --scale 0.5 --steps 5000",
