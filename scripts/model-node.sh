@@ -51,6 +51,10 @@ calibrate_round() { # calibrate_round LABEL
             --steps "$c_steps" --interval "$c_interval"
         sph 2 "cal_still_s0.5_${grid}_$1" --setup still --scale 0.5 --grid "$grid" \
             --steps "$cs_steps" --interval "$c_interval"
+        # Above the cores (every rank busy): the app's own time-sharing overhead at 1.5 ranks
+        # per core; other loads fall back to the exchange benchmark's.
+        sph 3 "cal_still_s0.5_${grid}_r3_$1" --setup still --scale 0.5 --grid "$grid" \
+            --steps "$cs_steps" --interval "$c_interval"
     done
     cal_s=$((cal_s + SECONDS - t0))
 }
@@ -62,7 +66,7 @@ validate_run() { # validate_run RANKS NAME ARGS...
     val_s=$((val_s + SECONDS - t0))
 }
 
-echo "== calibration round a: half-scale runs, 2 ranks, all three grids"
+echo "== calibration round a: half-scale runs, 2 ranks (and 3 for time-sharing), all three grids"
 calibrate_round a
 echo "== validation runs (configurations calibration never ran), first half"
 for r in 1 2 3 4; do

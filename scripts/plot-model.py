@@ -180,8 +180,9 @@ def markdown(model, validation, args, out):
                  f"{validation.get('timestamp')}.")
     lines.append("")
     cal = model["calibration_runs"]
-    lines.append("Calibration runs (half scale, 2 ranks x 1 thread): " +
-                 ", ".join(f"{c['setup']} {c['grid']} {c['steps']} steps ({c['wall_s']:.1f} s)" for c in cal) + ".")
+    lines.append("Calibration runs (scale, ranks x threads): " +
+                 ", ".join(f"{c['setup']} {c['grid']} s{c['scale']:g} {c['ranks']}x{c['threads']} "
+                           f"{c['steps']} steps ({c['wall_s']:.1f} s)" for c in cal) + ".")
     if args.calibration_s and args.validation_s:
         lines.append(f"Calibration took {args.calibration_s:.0f} s of wall time, the validation runs it "
                      f"predicts {args.validation_s:.0f} s: {100 * args.calibration_s / args.validation_s:.0f} %.")
@@ -192,7 +193,14 @@ def markdown(model, validation, args, out):
         factors = ", ".join(f"{r['factor']:.2f}" for r in lvl["runs"])
         lines.append(f"Machine drift, {c['grid']} grid: the calibration runs took {factors} times the "
                      f"least-squares fit (spread {lvl['spread_pct']:.0f} %); the model takes the median "
-                     f"run's level ({lvl['factor']:.3f}). No prediction here is finer than that spread.")
+                     f"run's level ({lvl['factor']:.3f}; per setup: " +
+                     ", ".join(f"{k} {v['factor']:.3f}" for k, v in lvl.get("per_setup", {}).items()) +
+                     "). No prediction here is finer than that spread.")
+    for t in model.get("time_sharing", []):
+        runs = ", ".join(f"{r['overhead']:.2f}" for r in t["runs"])
+        lines.append(f"Time-sharing overhead at {t['load']:g} processes per core, measured on the app's own "
+                     f"calibration runs: {runs}; the model takes the median, {t['overhead']:.2f}. Other loads "
+                     "use the exchange benchmark's.")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
                  "compute | comm | wait | idle | pairs | exports (edge) | exports (regression) | peak RSS (MB, error) |")

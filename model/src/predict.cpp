@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <optional>
 
 namespace sphperf::model {
@@ -26,6 +27,9 @@ struct Costs {
     ExchangeModel exchange; // empty: the shifts are costed message by message with Hockney
     double record_bytes = 72;
     int cores = 1;
+    // Time-sharing overhead measured on the app's own calibration runs, by load (ranks x
+    // threads / cores); a load it did not run falls back to the exchange benchmark's.
+    std::map<double, double> sharing;
     // Peak RSS per rank (model/README.md "Memory"); absent in a model without calibration RSS.
     double bytes_per_particle = 0, bytes_per_interaction = 0, fixed_bytes = 0;
 };
@@ -50,7 +54,7 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             have += (have.empty() ? "" : ", ") + m.at("grid").get<std::string>() + "/" +
                     std::to_string(m.at("threads").get<int>());
             if (m.at("grid") == grid && m.at("threads") == threads) {
-                c.compute = LinearFit::from_json(m, "model compute");
+                c.compute = compute_cost_of(m, setup);
                 found = true;
             }
         }
@@ -76,6 +80,9 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         c.exchange = ExchangeModel::from_profile(model.at("machine"));
         c.record_bytes = model.at("record_bytes").get<double>();
         c.cores = model.at("machine").at("cores").get<int>();
+        if (model.contains("time_sharing"))
+            for (const auto &t : model.at("time_sharing"))
+                c.sharing[t.at("load").get<double>()] = t.at("overhead").get<double>();
         if (model.contains("memory")) {
             const auto &mem = model.at("memory");
             // Per grid when the model has it (Cell+Sorted stores a copy, no pairs).
@@ -101,6 +108,20 @@ struct RankStep {
     double field = 0, walls = 0, ghost = 0, exported = 0, exported_regression = 0, pairs = 0,
            interactions = 0, compute_s = 0, comm_s = 0, wait_s = 0, idle_s = 0;
 };
+
+// The time-sharing overhead at this many processes x threads, and where it comes from.
+std::pair<double, const char *> sharing_overhead(const Costs &c, int processes,
+                                                 const ExchangeSet *set, double gap_s) {
+    if (processes <= c.cores)
+        return {1.0, "none (within the cores)"};
+    const double load = static_cast<double>(processes) / c.cores;
+    for (const auto &[l, o] : c.sharing)
+        if (std::abs(l - load) < 1e-9)
+            return {o, "time-shared calibration run"};
+    if (set)
+        return {ExchangeModel::round_overhead(*set, gap_s), "exchange benchmark"};
+    return {1.0, "none (no measurement at this load)"};
+}
 
 // One step of every rank at simulated time t, from the workload of the slabs.
 std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Costs &c, int threads,
@@ -178,7 +199,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
     // neighbour): the exchange benchmark's round overhead at this rank count and gap.
     // Above the cores a rank waiting in a shift is descheduled and the others compute: the
     // shifts' cost is inside the time-sharing bound, not added to it.
-    const double overhead = set ? ExchangeModel::round_overhead(*set, gap) : 1.0;
+    const double overhead = sharing_overhead(c, P * threads, set, gap).first;
     step_s = shared ? std::max(slowest, demand / c.cores * overhead) : longest;
     for (auto &s : out) {
         s.wait_s = std::max(0.0, step_s - s.compute_s - s.comm_s);
@@ -340,6 +361,11 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
              {"memory", memory},
              {"threads", req.threads},
              {"oversubscribed", P * req.threads > c.cores},
+             {"time_sharing_source",
+              sharing_overhead(
+                  c, P * req.threads,
+                  c.exchange.empty() ? nullptr : &c.exchange.set_for(P, req.threads, c.cores), 0)
+                  .second},
              {"wall_s", wall},
              {"totals",
               {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},

@@ -57,6 +57,41 @@ GridKind parse_grid(std::string_view s) {
 BoundaryKind parse_boundary(std::string_view s) {
     return parse_enum("boundary", s, boundaries);
 }
+FaultInjection parse_fault(std::string_view s) {
+    const std::string text(s);
+    const auto bad = [&] {
+        return UsageError("SPHPERF_INJECT_FAULT='" + text +
+                          "': expected KIND:RANK:STEP with KIND throw or nan, RANK >= 0, "
+                          "STEP >= 1");
+    };
+    const auto a = text.find(':'), b = text.find(':', a == std::string::npos ? a : a + 1);
+    if (a == std::string::npos || b == std::string::npos)
+        throw bad();
+    FaultInjection f;
+    const std::string kind = text.substr(0, a);
+    if (kind == "throw")
+        f.kind = FaultInjection::Kind::exception;
+    else if (kind == "nan")
+        f.kind = FaultInjection::Kind::nan;
+    else
+        throw bad();
+    try {
+        std::size_t used = 0;
+        const std::string rank = text.substr(a + 1, b - a - 1), step = text.substr(b + 1);
+        f.rank = std::stoi(rank, &used);
+        if (used != rank.size())
+            throw bad();
+        f.step = std::stoll(step, &used);
+        if (used != step.size())
+            throw bad();
+    } catch (const std::logic_error &) { // stoi/stoll: not a number or out of range
+        throw bad();
+    }
+    if (f.rank < 0 || f.step < 1)
+        throw bad();
+    return f;
+}
+
 std::string_view to_string(Setup s) {
     return name_of(s, setups);
 }

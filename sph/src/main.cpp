@@ -11,6 +11,7 @@
 #include <omp.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <memory>
 
@@ -60,6 +61,8 @@ Config parse(int argc, char **argv) {
         cfg.steps = steps;
     if (o_end->count())
         cfg.end_time = end_time;
+    if (const char *fault = std::getenv("SPHPERF_INJECT_FAULT"))
+        cfg.fault = parse_fault(fault);
     cfg.physics.h = Physics::h_factor * cfg.physics.delta * std::sqrt(2.0);
     if (cfg.vtk_dir && cfg.vtk_every == 0)
         cfg.vtk_every = cfg.interval;
@@ -145,6 +148,23 @@ void print_summary(const nlohmann::json &r) {
                 ph["time_s"].back().get<double>());
 }
 
+void simulate(const Config &cfg, const Geometry &geo, int rank) {
+    Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
+    const std::vector<int> pus = domain.gather_int(bound_pu());
+    if (cfg.machine)
+        attach_message_costs(domain, *cfg.machine, pus, omp_get_max_threads());
+    RunRecord rec = cfg.grid == GridKind::list    ? Simulation<CellList>(cfg, geo, domain).run()
+                    : cfg.grid == GridKind::table ? Simulation<CellTable>(cfg, geo, domain).run()
+                                                  : Simulation<CellSorted>(cfg, geo, domain).run();
+    rec.placement_pus = pus;
+    if (rank == 0) {
+        const Topology topo;
+        const nlohmann::json report = build_report(rec, topo);
+        print_summary(report);
+        JsonSink(cfg.report).write(report);
+    }
+}
+
 int run(int argc, char **argv, int rank, int ranks) {
     const Config cfg = parse(argc, argv);
     const Geometry geo = make_geometry(cfg);
@@ -163,19 +183,20 @@ int run(int argc, char **argv, int rank, int ranks) {
                          "launch with scripts/mpirun.sh -n RANKS -t THREADS\n",
                          omp_get_max_threads(), bound);
     }
-    Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
-    const std::vector<int> pus = domain.gather_int(bound_pu());
-    if (cfg.machine)
-        attach_message_costs(domain, *cfg.machine, pus, omp_get_max_threads());
-    RunRecord rec = cfg.grid == GridKind::list    ? Simulation<CellList>(cfg, geo, domain).run()
-                    : cfg.grid == GridKind::table ? Simulation<CellTable>(cfg, geo, domain).run()
-                                                  : Simulation<CellSorted>(cfg, geo, domain).run();
-    rec.placement_pus = pus;
-    if (rank == 0) {
-        const Topology topo;
-        const nlohmann::json report = build_report(rec, topo);
-        print_summary(report);
-        JsonSink(cfg.report).write(report);
+    // From here on an error may strike one rank only, while the others wait in an exchange:
+    // it ends the whole job (MPI_Abort), naming the rank, instead of leaving them waiting.
+    try {
+        simulate(cfg, geo, rank);
+    } catch (const ExitRequest &) {
+        throw;
+    } catch (const std::exception &e) {
+        const int code = dynamic_cast<const UsageError *>(&e) ? exit_usage : exit_failure;
+        if (ranks == 1)
+            throw;
+        std::fprintf(stderr, "sph: %s: rank %d of %d: %s\n", code == exit_usage ? "error" : "fatal",
+                     rank, ranks, e.what());
+        std::fflush(stderr);
+        MPI_Abort(MPI_COMM_WORLD, code);
     }
     return 0;
 }

@@ -50,11 +50,8 @@ void Progress::finish() {
         std::fprintf(stderr, "\n");
 }
 
-void Snapshots::write(const std::filesystem::path &dir, std::int64_t index, double time,
-                      const Particles &p, int rank, int ranks) {
-    char name[64];
-    std::snprintf(name, sizeof name, "sph_%06lld_r%03d.vtu", static_cast<long long>(index), rank);
-    std::ofstream out(dir / name);
+void write_vtu(const std::filesystem::path &path, const Particles &p, int rank) {
+    std::ofstream out(path);
     const std::size_t n = p.owned();
     out << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\">\n"
         << "<UnstructuredGrid><Piece NumberOfPoints=\"" << n << "\" NumberOfCells=\"" << n
@@ -87,9 +84,17 @@ void Snapshots::write(const std::filesystem::path &dir, std::int64_t index, doub
     scalar("pressure", [&](std::size_t i) { return p.p[i]; });
     scalar("rank", [&](std::size_t) { return rank; });
     scalar("kind", [&](std::size_t i) { return static_cast<int>(p.kind[i]); });
+    scalar("id", [&](std::size_t i) { return p.id[i]; });
     out << "</PointData>\n</Piece></UnstructuredGrid>\n</VTKFile>\n";
     if (!out)
-        throw std::runtime_error("failed writing snapshot " + (dir / name).string());
+        throw std::runtime_error("failed writing snapshot " + path.string());
+}
+
+void Snapshots::write(const std::filesystem::path &dir, std::int64_t index, double time,
+                      const Particles &p, int rank, int ranks) {
+    char name[64];
+    std::snprintf(name, sizeof name, "sph_%06lld_r%03d.vtu", static_cast<long long>(index), rank);
+    write_vtu(dir / name, p, rank);
     // Rank 0 indexes every rank's part: the names are predictable.
     if (rank == 0)
         for (int r = 0; r < ranks; ++r) {

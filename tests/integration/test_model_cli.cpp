@@ -13,9 +13,10 @@ namespace fs = std::filesystem;
 
 namespace {
 // Shared fixtures, made once: a machine profile from the shipped raw reports, and short
-// half-scale dam-break runs at 2 and 3 ranks with fine intervals.
+// half-scale dam-break runs at 1, 2 and 3 ranks with fine intervals, and a still tank at 3 ranks
+// (3 ranks is above the shipped profile's 2 cores: time-shared).
 struct Fixture {
-    fs::path dir, machine, run2, run3, model;
+    fs::path dir, machine, run1, run2, run3, still3, model;
     Fixture() {
         dir = scratch("model_cli");
         machine = dir / "machine.json";
@@ -24,17 +25,24 @@ struct Fixture {
                     "dgemm.json --pingpong " + vm + "pingpong.json --out " + machine.string());
         EXPECT_EQ(r.code, 0) << r.err;
         // The shipped profile is of host "vm": calibrate with --allow-other-host elsewhere.
+        run1 = dir / "run1.json";
         run2 = dir / "run2.json";
         run3 = dir / "run3.json";
-        for (auto [ranks, path] : {std::pair{2, run2}, std::pair{3, run3}}) {
+        for (auto [ranks, path] : {std::pair{1, run1}, std::pair{2, run2}, std::pair{3, run3}}) {
             r = run(mpirun(ranks) + bin("sph") +
                     " --quiet --setup dambreak --scale 0.5 --steps 60 --interval 10 --machine " +
                     machine.string() + " --report " + path.string());
             EXPECT_EQ(r.code, 0) << r.err;
         }
+        // All three ranks of a still tank are busy: it measures the time-sharing overhead.
+        still3 = dir / "still3.json";
+        r = run(mpirun(3) + bin("sph") + " --quiet --setup still --scale 0.5 --steps 40 " +
+                "--interval 10 --report " + still3.string());
+        EXPECT_EQ(r.code, 0) << r.err;
         model = dir / "model.json";
         r = run(bin("sphmodel") + " calibrate --allow-other-host --machine " + machine.string() +
-                " --runs " + run2.string() + " " + run3.string() + " --out " + model.string());
+                " --runs " + run1.string() + " " + run2.string() + " " + run3.string() + " " +
+                still3.string() + " --out " + model.string());
         EXPECT_EQ(r.code, 0) << r.err;
     }
 };
@@ -68,6 +76,17 @@ TEST(ModelCli, CalibratePredictValidate) {
           "/regressions/dambreak/exports/coefficients/r/se_pct", "/compute/0/cv_rmse_s",
           "/roofline/verdict", "/traces/dambreak/columns", "/machine/hockney/classes"})
         EXPECT_TRUE(m.contains(nlohmann::json::json_pointer(p))) << p;
+    // The time-shared 3-rank runs set the time-sharing overhead, not the compute cost; the
+    // dam break's (one busy rank) never reaches the bound, the still tank's does.
+    for (const auto &c : m["compute"]) {
+        EXPECT_EQ(c["runs"].get<int>(), 2) << c["grid"];
+        EXPECT_TRUE(c.contains(nlohmann::json::json_pointer("/run_level/per_setup/dambreak")));
+    }
+    ASSERT_EQ(m["time_sharing"].size(), 1u);
+    EXPECT_DOUBLE_EQ(m["time_sharing"][0]["load"].get<double>(), 1.5);
+    ASSERT_EQ(m["time_sharing"][0]["runs"].size(), 1u);
+    EXPECT_EQ(m["time_sharing"][0]["runs"][0]["run"].get<std::string>(), f.still3.string());
+    EXPECT_GT(m["time_sharing"][0]["overhead"].get<double>(), 0.0);
     const auto pred = f.dir / "pred.json";
     sphperf::testing::Run r =
         run(bin("sphmodel") + " predict --model " + f.model.string() +
@@ -79,6 +98,9 @@ TEST(ModelCli, CalibratePredictValidate) {
     for (const auto &c : p["configurations"]) {
         EXPECT_GT(c["wall_s"].get<double>(), 0);
         EXPECT_EQ(c["intervals"].size(), 6u);
+        EXPECT_EQ(c["time_sharing_source"].get<std::string>(), c["ranks"].get<int>() == 3
+                                                                   ? "time-shared calibration run"
+                                                                   : "none (within the cores)");
     }
     // The measured 2- and 3-rank runs are matched to their predicted configurations.
     const auto val = f.dir / "validation.json";

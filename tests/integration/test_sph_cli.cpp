@@ -252,6 +252,56 @@ INSTANTIATE_TEST_SUITE_P(
                                   "/nonexistent/dir/r.json"}),
     [](const auto &info) { return info.param.name; });
 
+// An error on one rank ends the whole job: no rank is left waiting in an exchange (a hang
+// would hit the 30 s timeout, exit 124). The failing rank names itself and the step; a NaN is
+// caught by the state check, which writes that rank's particles for inspection.
+struct Fault {
+    std::string name, fault, expect;
+    int ranks;
+};
+void PrintTo(const Fault &f, std::ostream *os) {
+    *os << f.name;
+}
+class SphFaultTest : public ::testing::TestWithParam<Fault> {};
+
+TEST_P(SphFaultTest, EndsTheWholeJobNamingRankAndStep) {
+    const Fault &f = GetParam();
+    const auto dir = scratch("sph_fault_" + f.name);
+    const auto report = dir / "r.json";
+    const auto r = run("SPHPERF_INJECT_FAULT=" + f.fault + " timeout -k 5 30 " + mpirun(f.ranks) +
+                       bin("sph") + " --quiet --setup still --scale 0.5 --steps 40 --interval 10 " +
+                       "--report " + report.string());
+    EXPECT_NE(r.code, 0) << r.err;
+    EXPECT_NE(r.code, 124) << "the job hung: " << r.err;
+    EXPECT_NE(r.err.find(f.expect), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(report)) << "a failed run wrote a report";
+    if (f.fault.starts_with("nan")) {
+        const auto rank = f.fault.substr(4, f.fault.rfind(':') - 4);
+        const auto step = f.fault.substr(f.fault.rfind(':') + 1);
+        char name[64];
+        std::snprintf(name, sizeof name, "sph_failure_step%s_r%03d.vtu", step.c_str(),
+                      std::stoi(rank));
+        EXPECT_TRUE(fs::exists(dir / name)) << name << " missing; " << r.err;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Sph, SphFaultTest,
+    ::testing::Values(Fault{"throw_r1", "throw:0:3", "step 3: injected fault", 1},
+                      Fault{"throw_r2", "throw:1:5", "rank 1 of 2: step 5: injected fault", 2},
+                      Fault{"throw_r3", "throw:1:5", "rank 1 of 3: step 5: injected fault", 3},
+                      Fault{"nan_r1", "nan:0:4",
+                            "step 4: fluid particle id 0 has a non-finite velocity", 1},
+                      Fault{"nan_r3", "nan:2:3", "rank 2 of 3: step 3:", 3}),
+    [](const auto &info) { return info.param.name; });
+
+TEST(SphCli, BadFaultInjectionIsAUsageError) {
+    const auto r = run("SPHPERF_INJECT_FAULT=boom:1 " + bin("sph") + " --steps 1");
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(r.err_lines(), 1) << r.err;
+    EXPECT_NE(r.err.find("SPHPERF_INJECT_FAULT='boom:1'"), std::string::npos) << r.err;
+}
+
 TEST(SphCli, Help) {
     const auto r = run(bin("sph") + " --help");
     EXPECT_EQ(r.code, 0);

@@ -38,6 +38,10 @@ struct RankWork {
     double value(const std::string &term) const;
 };
 
+// The compute cost of one calibrated entry (`model.json` `compute[i]`) for a setup: its
+// coefficients at the setup's own run level when the calibration ran that setup.
+LinearFit compute_cost_of(const nlohmann::json &entry, const std::string &setup);
+
 struct CalibrateOptions {
     bool allow_other_host = false;
 };

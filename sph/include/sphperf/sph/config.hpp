@@ -62,6 +62,18 @@ struct Geometry {
     }
 };
 
+// A deliberate failure on one rank at one step, for the tests of the abort path: environment
+// SPHPERF_INJECT_FAULT="KIND:RANK:STEP", KIND `throw` (an exception) or `nan` (a NaN velocity,
+// caught by the state check). Never set in production runs.
+struct FaultInjection {
+    enum class Kind { exception, nan };
+    Kind kind = Kind::exception;
+    int rank = 0;
+    std::int64_t step = 0;
+};
+// Parses "KIND:RANK:STEP"; throws UsageError naming the value.
+FaultInjection parse_fault(std::string_view s);
+
 struct Config {
     Setup setup = Setup::dambreak;
     GridKind grid = GridKind::table;
@@ -78,6 +90,7 @@ struct Config {
     std::optional<std::filesystem::path> vtk_dir;
     int vtk_every = 0;
     bool quiet = false;
+    std::optional<FaultInjection> fault;
     Physics physics;
 
     std::int64_t total_steps() const;

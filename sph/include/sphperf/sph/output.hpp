@@ -32,6 +32,10 @@ private:
 
 // One .vtu per rank and snapshot (owned particles: position, velocity, density, pressure, kind,
 // owning rank) and a .pvd index ordering them in time.
+// One rank's owned particles as a ParaView .vtu file (positions, velocity, density, pressure,
+// rank, kind, id).
+void write_vtu(const std::filesystem::path &path, const Particles &p, int rank);
+
 class Snapshots {
 public:
     void write(const std::filesystem::path &dir, std::int64_t index, double time,

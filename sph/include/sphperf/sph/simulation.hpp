@@ -46,6 +46,9 @@ private:
     void step();
     void close_interval(std::int64_t step);
     void check_conservation(std::int64_t step) const;
+    void check_state(std::int64_t step) const;
+    [[noreturn]] void fail_state(std::int64_t step, std::size_t i, const std::string &what) const;
+    void inject_fault(std::int64_t step);
     void sample_physics(double time);
     void write_snapshot(std::int64_t step);
     // Particles of kind k (fluid or wall) per global cell column, summed on rank 0.
@@ -198,6 +201,58 @@ template <CellGrid Grid> void Simulation<Grid>::check_conservation(std::int64_t 
                           : " on rank(s) " + culprits + " (holdings differ from migrations)"));
 }
 
+// Every step, on this rank alone: a NaN spreads to every neighbour within a step or two, and a
+// fluid particle through a wall is lost physics. Either stops the run at once, naming the step
+// and the particle, with this rank's particles written out for inspection.
+template <CellGrid Grid> void Simulation<Grid>::check_state(std::int64_t step) const {
+    for (std::size_t i = 0; i < p_.owned(); ++i) {
+        if (!std::isfinite(p_.x[i]) || !std::isfinite(p_.y[i]))
+            fail_state(step, i, "a non-finite position");
+        if (!std::isfinite(p_.vx[i]) || !std::isfinite(p_.vy[i]))
+            fail_state(step, i, "a non-finite velocity");
+        if (!std::isfinite(p_.rho[i]))
+            fail_state(step, i, "a non-finite density");
+        if (i < p_.fluid() && (p_.x[i] < 0 || p_.x[i] > geo_.tank_length || p_.y[i] < 0))
+            fail_state(step, i,
+                       "left the tank (0 <= x <= " + std::to_string(geo_.tank_length) +
+                           " m, y >= 0)");
+    }
+}
+
+template <CellGrid Grid>
+void Simulation<Grid>::fail_state(std::int64_t step, std::size_t i, const std::string &what) const {
+    const std::filesystem::path dir =
+        cfg_.vtk_dir
+            ? *cfg_.vtk_dir
+            : (cfg_.report && !cfg_.report->parent_path().empty() ? cfg_.report->parent_path()
+                                                                  : ".");
+    char name[64];
+    std::snprintf(name, sizeof name, "sph_failure_step%lld_r%03d.vtu", static_cast<long long>(step),
+                  dom_.rank());
+    std::string where;
+    try {
+        write_vtu(dir / name, p_, dom_.rank());
+        where = "this rank's particles are in " + (dir / name).string();
+    } catch (const std::exception &e) {
+        where = e.what();
+    }
+    char state[160];
+    std::snprintf(state, sizeof state, "x %.6g y %.6g vx %.6g vy %.6g rho %.6g", p_.x[i], p_.y[i],
+                  p_.vx[i], p_.vy[i], p_.rho[i]);
+    throw std::runtime_error(
+        "step " + std::to_string(step) + ": " + (i < p_.fluid() ? "fluid" : "wall") +
+        " particle id " + std::to_string(p_.id[i]) + " has " + what + " (" + state + "); " + where);
+}
+
+template <CellGrid Grid> void Simulation<Grid>::inject_fault(std::int64_t step) {
+    if (cfg_.fault->kind == FaultInjection::Kind::nan && p_.owned() > 0) {
+        p_.vx[0] = std::numeric_limits<double>::quiet_NaN();
+        return;
+    }
+    throw std::runtime_error("step " + std::to_string(step) +
+                             ": injected fault (SPHPERF_INJECT_FAULT)");
+}
+
 template <CellGrid Grid> std::vector<double> Simulation<Grid>::column_histogram(bool fluid) const {
     std::vector<double> columns(static_cast<std::size_t>(geo_.cell_columns), 0.0);
     const std::size_t begin = fluid ? 0 : p_.fluid(), end = fluid ? p_.fluid() : p_.owned();
@@ -269,6 +324,9 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
             ScopedPhase t(step_timers_, Phase::comp);
             shepard_filter(p_, nb_, phys_);
         }
+        if (cfg_.fault && cfg_.fault->rank == dom_.rank() && cfg_.fault->step == s)
+            inject_fault(s);
+        check_state(s);
         const double dt_wall = wall_seconds() - t0;
         if (p_.fluid() == 0) {
             acc_.idle_s += dt_wall;
