@@ -326,7 +326,12 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         }
         if (cfg_.fault && cfg_.fault->rank == dom_.rank() && cfg_.fault->step == s)
             inject_fault(s);
-        check_state(s);
+        {
+            // Timed with the integrator (a pass over the owned particles): every second of a
+            // step lands in some phase, and the model reads an interval's time from the timers.
+            ScopedPhase t(step_timers_, Phase::integrate);
+            check_state(s);
+        }
         const double dt_wall = wall_seconds() - t0;
         if (p_.fluid() == 0) {
             acc_.idle_s += dt_wall;
