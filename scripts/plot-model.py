@@ -194,14 +194,15 @@ def markdown(model, validation, args, out):
         factors = ", ".join(f"{r['factor']:.2f}" for r in lvl["runs"])
         lines.append(f"Machine drift, {c['grid']} grid: the calibration runs took {factors} times the "
                      f"least-squares fit (spread {lvl['spread_pct']:.0f} %); the model takes the median "
-                     f"run's level ({lvl['factor']:.3f}; per setup: " +
+                     f"run's level ({lvl['factor']:.3f}, mean {lvl.get('factor_mean', float('nan')):.3f}; per setup: " +
                      ", ".join(f"{k} {v['factor']:.3f}" for k, v in lvl.get("per_setup", {}).items()) +
                      "). No prediction here is finer than that spread.")
     for t in model.get("time_sharing", []):
         runs = ", ".join(f"{r['overhead']:.2f}" for r in t["runs"])
         lines.append(f"Time-sharing overhead at {t['load']:g} processes per core, measured on the app's own "
-                     f"calibration runs: {runs}; the model takes the median, {t['overhead']:.2f}. Other loads "
-                     "use the exchange benchmark's.")
+                     f"calibration runs: {runs}; the model takes the median, {t['overhead']:.2f} (mean "
+                     f"{t.get('overhead_mean', float('nan')):.2f}, spread {t.get('overhead_min', float('nan')):.2f}-"
+                     f"{t.get('overhead_max', float('nan')):.2f}). Other loads use the exchange benchmark's.")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
                  "compute | comm | wait | idle | pairs | exports (edge) | exports (regression) | peak RSS (MB, error) |")

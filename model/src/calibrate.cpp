@@ -167,7 +167,9 @@ json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs)
             level.factors[k]);
     json per_setup = json::object();
     for (const auto &[setup, v] : setup_factors)
-        per_setup[setup] = {{"factor", sphperf::median(v)}, {"runs", v.size()}};
+        per_setup[setup] = {{"factor", sphperf::median(v)},
+                            {"factor_mean", sphperf::summarize(v).avg},
+                            {"runs", v.size()}};
     std::vector<double> residuals;
     for (std::size_t i = 0; i < pts.size(); ++i)
         residuals.push_back(f.predict(X[i]) - y[i]);
@@ -180,6 +182,8 @@ json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs)
     j["run_level"] = {{"method", "median over calibration runs of measured / least-squares "
                                  "compute time; the coefficients are scaled by it"},
                       {"factor", level.median},
+                      {"factor_mean", level.mean},
+                      {"uses", "median"},
                       {"spread_pct", level.spread_pct},
                       {"runs", factors},
                       {"per_setup", per_setup}};
@@ -394,8 +398,15 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
             o.push_back(x);
             per_run.push_back({{"run", path}, {"overhead", x}});
         }
+        const Summary s = sphperf::summarize(o);
+        // A sum of times pays the mean; the bimodal runs (a busy rank that shares its core with a
+        // polling one, or not) make the median and the mean differ, so both are kept.
         out.push_back({{"load", load},
-                       {"overhead", sphperf::median(o)},
+                       {"overhead", s.median},
+                       {"overhead_mean", s.avg},
+                       {"overhead_min", s.min},
+                       {"overhead_max", s.max},
+                       {"uses", "median"},
                        {"runs", per_run},
                        {"method", "median over the time-shared calibration runs at this load of "
                                   "measured time / (summed predicted compute per core), over "

@@ -1,6 +1,7 @@
 #include "sphperf/model/fit.hpp"
 
 #include "sphperf/cli.hpp"
+#include "sphperf/stats.hpp"
 
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit.h>
@@ -172,11 +173,10 @@ RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X
         }
     if (level.factors.empty())
         return level;
-    std::vector<double> sorted = level.factors;
-    std::sort(sorted.begin(), sorted.end());
-    const std::size_t n = sorted.size();
-    level.median = n % 2 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
-    level.spread_pct = 100.0 * (sorted.back() / sorted.front() - 1.0);
+    const Summary s = summarize(level.factors);
+    level.median = s.median;
+    level.mean = s.avg;
+    level.spread_pct = 100.0 * (s.max / s.min - 1.0);
     return level;
 }
 

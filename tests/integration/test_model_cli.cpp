@@ -87,6 +87,12 @@ TEST(ModelCli, CalibratePredictValidate) {
     ASSERT_EQ(m["time_sharing"][0]["runs"].size(), 1u);
     EXPECT_EQ(m["time_sharing"][0]["runs"][0]["run"].get<std::string>(), f.still3.string());
     EXPECT_GT(m["time_sharing"][0]["overhead"].get<double>(), 0.0);
+    // One run: its mean, median, min and max are that run's overhead, and the model says which
+    // one it uses.
+    const auto &ts = m["time_sharing"][0];
+    EXPECT_DOUBLE_EQ(ts["overhead_mean"].get<double>(), ts["runs"][0]["overhead"].get<double>());
+    EXPECT_DOUBLE_EQ(ts["overhead_min"].get<double>(), ts["overhead_max"].get<double>());
+    EXPECT_EQ(ts["uses"].get<std::string>(), "median");
     const auto pred = f.dir / "pred.json";
     sphperf::testing::Run r =
         run(bin("sphmodel") + " predict --model " + f.model.string() +

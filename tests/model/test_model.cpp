@@ -83,6 +83,10 @@ TEST(Fit, RunLevelIsTheMedianRunsAndIgnoresOneSlowRun) {
     EXPECT_NEAR(f.coef[0], 60e-9, 0.02 * 60e-9);
     EXPECT_NEAR(f.se[0] / f.coef[0], ls.se[0] / ls.coef[0], 1e-12);
     EXPECT_NEAR(level.spread_pct, 35, 5);
+    // The mean, reported beside, does feel the slow run: four factors near f and one near 1.35 f.
+    const double f4 = level.factors[0];
+    EXPECT_NEAR(level.mean, (4 * f4 + level.factors[4]) / 5, 0.02 * f4);
+    EXPECT_GT(level.mean, level.median);
 }
 
 TEST(Workload, RecutFollowsTheAppsSlabsAndEdgeColumns) {

@@ -44,6 +44,7 @@ struct RunLevel {
     std::vector<int> groups;     // in ascending order
     std::vector<double> factors; // measured / fitted, per group
     double median = 1;           // median of factors (mean of the middle two for an even count)
+    double mean = 1;             // reported beside: a sum of times pays the mean
     double spread_pct = 0;       // 100 (max / min - 1): how far identical work drifted
 };
 RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X,
