@@ -1,6 +1,7 @@
 // sphmodel calibrate: the thesis regressions, the compute-cost fit with terms chosen by
 // cross-validation, the roofline placement, the communication links and the workload traces.
 #include "sphperf/cli.hpp"
+#include "sphperf/model/memory.hpp"
 #include "sphperf/model/runtime.hpp"
 #include "sphperf/stats.hpp"
 
@@ -306,19 +307,6 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
 // Peak RSS per rank = fixed + bytes per stored particle x particles + bytes per interaction x
 // interactions, the last two counted from our data structures (model/README.md), the fixed part
 // (MPI, OpenMP and libraries) the median residual of the calibration runs.
-constexpr double bytes_per_particle = 10 * 8 + 8 + 1 + 4 + 8 + 4; // SoA + id + kind + list/grid
-constexpr double bytes_per_interaction = 4 + 2 * 4 + 4; // list, per-thread block (2x capacity)
-// Cell+Sorted stores no pairs and no list offsets, but a cell-ordered copy of every particle:
-// x, y, vx, vy, rho, p, mass, fluid (8 doubles), id, original index and cell key.
-constexpr double sorted_bytes_per_particle = bytes_per_particle - 4 + 8 * 8 + 8 + 4 + 4;
-struct MemoryCounts {
-    double per_particle, per_interaction;
-};
-MemoryCounts memory_counts(const std::string &grid) {
-    if (grid == "sorted")
-        return {sorted_bytes_per_particle, 0.0};
-    return {bytes_per_particle, bytes_per_interaction};
-}
 json memory_model(const std::vector<SphRun> &runs) {
     std::vector<double> fixed;
     for (const auto &r : runs)

@@ -33,16 +33,21 @@ int run(int argc, char **argv) {
 
     const JsonSink sink(cfg.out);
     const Topology topo;
-    // Loaded in argument order, so the first bad file is the one named.
-    const auto stream = model::load_report(cfg.stream, "stream");
-    const auto dgemm = model::load_report(cfg.dgemm, "dgemm");
-    const auto pingpong = model::load_report(cfg.pingpong, "pingpong");
+    // Loaded and checked in argument order, so the first bad file is the one named.
+    auto checked = [](const std::filesystem::path &path, const char *benchmark, const char *kind) {
+        auto j = model::load_report(path, benchmark);
+        model::check_report(j, kind, "'" + path.string() + "'");
+        return j;
+    };
+    const auto stream = checked(cfg.stream, "stream", "stream");
+    const auto dgemm = checked(cfg.dgemm, "dgemm", "dgemm");
+    const auto pingpong = checked(cfg.pingpong, "pingpong", "pingpong");
     std::vector<nlohmann::json> alts;
     for (const auto &a : cfg.dgemm_alternatives)
-        alts.push_back(model::load_report(a, "dgemm"));
+        alts.push_back(checked(a, "dgemm", "dgemm-alternative"));
     std::vector<nlohmann::json> exchanges;
     for (const auto &e : cfg.exchanges)
-        exchanges.push_back(model::load_report(e, "exchange"));
+        exchanges.push_back(checked(e, "exchange", "exchange"));
     nlohmann::json profile;
     try {
         profile = model::build_profile(report_header("machine", topo), stream, dgemm, pingpong,

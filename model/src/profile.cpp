@@ -3,8 +3,10 @@
 #include "sphperf/cli.hpp"
 #include "sphperf/model/comm_model.hpp"
 
+#include <cmath>
 #include <fstream>
 #include <map>
+#include <stdexcept>
 
 namespace sphperf::model {
 
@@ -26,6 +28,73 @@ nlohmann::json load_report(const std::filesystem::path &path, std::string_view b
 }
 
 namespace {
+// Typed reads at JSON pointers, each naming the file and the key when the value is absent, of
+// the wrong type, not finite or out of range.
+class Checked {
+public:
+    Checked(const nlohmann::json &root, std::string where)
+        : root_(root), where_(std::move(where)) {}
+
+    const nlohmann::json &at(const std::string &ptr) const {
+        const nlohmann::json::json_pointer p(ptr);
+        if (!root_.contains(p))
+            fail(ptr, "is missing");
+        return root_.at(p);
+    }
+    double number(const std::string &ptr, double min, bool strictly) const {
+        const auto &v = at(ptr);
+        if (!v.is_number())
+            fail(ptr, "is " + v.dump() + ", expected a number");
+        const double x = v.get<double>();
+        if (!std::isfinite(x) || (strictly ? !(x > min) : !(x >= min)))
+            fail(ptr, "is " + v.dump() + ", expected a finite number " + (strictly ? "> " : ">= ") +
+                          nlohmann::json(min).dump());
+        return x;
+    }
+    double positive(const std::string &ptr) const { return number(ptr, 0, true); }
+    double finite(const std::string &ptr) const {
+        const auto &v = at(ptr);
+        if (!v.is_number() || !std::isfinite(v.get<double>()))
+            fail(ptr, "is " + v.dump() + ", expected a finite number");
+        return v.get<double>();
+    }
+    double non_negative(const std::string &ptr) const { return number(ptr, 0, false); }
+    long long integer(const std::string &ptr, long long min, long long max) const {
+        const auto &v = at(ptr);
+        if (!v.is_number_integer() || v.get<long long>() < min || v.get<long long>() > max)
+            fail(ptr, "is " + v.dump() + ", expected an integer in [" + std::to_string(min) + ", " +
+                          std::to_string(max) + "]");
+        return v.get<long long>();
+    }
+    std::size_t array(const std::string &ptr) const { // non-empty
+        const auto &v = at(ptr);
+        if (!v.is_array() || v.empty())
+            fail(ptr, "is " + (v.is_array() ? std::string("empty") : v.dump()) +
+                          ", expected a non-empty array");
+        return v.size();
+    }
+    void string(const std::string &ptr) const {
+        if (!at(ptr).is_string())
+            fail(ptr, "is " + at(ptr).dump() + ", expected a string");
+    }
+    void object(const std::string &ptr) const {
+        if (!at(ptr).is_object())
+            fail(ptr, "is " + at(ptr).dump() + ", expected an object");
+    }
+    [[noreturn]] void fail(const std::string &ptr, const std::string &what) const {
+        std::string shown = what.size() > 120 ? what.substr(0, 120) + "..." : what;
+        throw UsageError(where_ + ": " + ptr + " " + shown);
+    }
+
+private:
+    const nlohmann::json &root_;
+    std::string where_;
+};
+
+std::string at_index(const std::string &base, std::size_t i) {
+    return base + "/" + std::to_string(i);
+}
+
 double require_number(const nlohmann::json &j, const nlohmann::json::json_pointer &ptr,
                       std::string_view what) {
     if (!j.contains(ptr) || !j.at(ptr).is_number())
@@ -74,6 +143,78 @@ nlohmann::json hockney_section(const nlohmann::json &pingpong) {
     return {{"pairs", pairs}, {"classes", classes}};
 }
 } // namespace
+
+void check_report(const nlohmann::json &report, std::string_view benchmark,
+                  const std::string &where) {
+    const Checked c(report, where);
+    if (benchmark == "stream") {
+        c.positive("/best_triad_GBps");
+        if (report.contains("best_triad_nt_GBps"))
+            c.non_negative("/best_triad_nt_GBps");
+        for (std::size_t i = 0, n = c.array("/results"); i < n; ++i) {
+            const auto r = at_index("/results", i);
+            c.integer(r + "/threads", 1, 1 << 20);
+            c.string(r + "/affinity");
+            c.positive(r + "/kernels/triad/best_GBps");
+        }
+    } else if (benchmark == "dgemm" || benchmark == "dgemm-alternative") {
+        if (benchmark == "dgemm") {
+            c.positive("/peak_probe/all_cores_gflops");
+            c.positive("/peak_probe/per_core_gflops");
+        }
+        c.positive("/best_gflops");
+        for (std::size_t i = 0, n = c.array("/results"); i < n; ++i) {
+            const auto r = at_index("/results", i);
+            c.integer(r + "/threads", 1, 1 << 20);
+            c.positive(r + "/gflops");
+        }
+    } else if (benchmark == "pingpong") {
+        const auto ranks = c.integer("/ranks", 2, 1 << 20);
+        for (const char *m : {"/alpha_matrix_s", "/beta_matrix_s_per_byte"}) {
+            if (c.array(m) != static_cast<std::size_t>(ranks))
+                c.fail(m, "has " +
+                              std::to_string(report.at(nlohmann::json::json_pointer(m)).size()) +
+                              " rows, expected /ranks = " + std::to_string(ranks));
+            for (long long i = 0; i < ranks; ++i) {
+                const auto row = at_index(m, static_cast<std::size_t>(i));
+                if (c.array(row) != static_cast<std::size_t>(ranks))
+                    c.fail(row, "has the wrong length, expected /ranks = " + std::to_string(ranks));
+                for (long long k = 0; k < ranks; ++k)
+                    if (i != k)
+                        c.non_negative(at_index(row, static_cast<std::size_t>(k)));
+            }
+        }
+        c.object("/classes");
+        for (std::size_t i = 0, n = c.array("/pairs"); i < n; ++i) {
+            const auto pr = at_index("/pairs", i);
+            if (c.array(pr + "/ranks") != 2)
+                c.fail(pr + "/ranks", "does not hold two ranks");
+            c.integer(pr + "/ranks/0", 0, ranks - 1);
+            c.integer(pr + "/ranks/1", 0, ranks - 1);
+            c.string(pr + "/locality");
+            for (std::size_t k = 0, m = c.array(pr + "/pieces"); k < m; ++k) {
+                const auto pc = at_index(pr + "/pieces", k);
+                c.finite(pc + "/alpha_s"); // a fitted intercept may dip below 0
+                c.non_negative(pc + "/beta_s_per_byte");
+                c.positive(pc + "/first_bytes");
+                c.positive(pc + "/last_bytes");
+            }
+        }
+    } else if (benchmark == "exchange") {
+        c.integer("/ranks", 2, 1 << 20);
+        c.integer("/cores", 1, 1 << 20);
+        if (!c.at("/oversubscribed").is_boolean())
+            c.fail("/oversubscribed", "is not true or false");
+        for (std::size_t i = 0, n = c.array("/points"); i < n; ++i) {
+            const auto pt = at_index("/points", i);
+            c.non_negative(pt + "/gap_s_mean");
+            c.positive(pt + "/payload_bytes");
+            c.non_negative(pt + "/shift/mean_s");
+        }
+    } else {
+        throw std::invalid_argument("check_report: unknown benchmark kind");
+    }
+}
 
 nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream,
                              const nlohmann::json &dgemm, const nlohmann::json &pingpong,

@@ -117,6 +117,10 @@ SphRun load_sph_run(const std::filesystem::path &path) {
     auto bad = [&](const std::string &what) {
         throw UsageError("'" + path.string() + "': " + what);
     };
+    if (j.contains("restart"))
+        bad("continues a checkpoint (sph --restart, from step " +
+            j["restart"].value("from_step", json(-1)).dump() +
+            "): its wall_s times only the steps after it; use uninterrupted runs");
     if (r.intervals.empty())
         bad("no intervals recorded (a run of 0 steps cannot calibrate anything)");
     if (r.initial_columns.size() != cols || r.wall_columns.size() != cols)

@@ -55,13 +55,11 @@ int run(int argc, char **argv) {
         ->check(CLI::IsMember({"list", "table", "sorted"}));
     pre->add_option("--scale", q.scale, "Geometry scale")
         ->capture_default_str()
-        ->check(Finite & CLI::PositiveNumber);
+        ->check(FinitePositive);
     pre->add_option("--delta", q.delta, "Particle spacing, m")
         ->capture_default_str()
-        ->check(Finite & CLI::PositiveNumber);
-    pre->add_option("--dt", q.dt, "Time step, s")
-        ->capture_default_str()
-        ->check(Finite & CLI::PositiveNumber);
+        ->check(FinitePositive);
+    pre->add_option("--dt", q.dt, "Time step, s")->capture_default_str()->check(FinitePositive);
     pre->add_option("--ranks", q.ranks, "Rank counts, comma separated")
         ->delimiter(',')
         ->capture_default_str()
@@ -71,8 +69,8 @@ int run(int argc, char **argv) {
         ->check(CLI::Range(1, 1024));
     auto *o_steps = pre->add_option("--steps", o.steps, "Time steps")
                         ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
-    auto *o_end = pre->add_option("--end-time", o.end_time, "Simulated time, s")
-                      ->check(Finite & CLI::PositiveNumber);
+    auto *o_end =
+        pre->add_option("--end-time", o.end_time, "Simulated time, s")->check(FinitePositive);
     o_steps->excludes(o_end);
     pre->add_option("--interval", q.interval, "Steps per predicted interval (as sph --interval)")
         ->capture_default_str()
@@ -90,7 +88,7 @@ int run(int argc, char **argv) {
         ->check(CLI::ExistingFile);
     auto *o_max = val->add_option("--max-error", o.max_error,
                                   "Exit 1 when a wall-time |error| exceeds this fraction")
-                      ->check(Finite & CLI::NonNegativeNumber);
+                      ->check(FiniteNonNegative);
     val->add_option("--out", o.out, "validation report to write (JSON)")->required();
     parse_cli(app, argc, argv);
 

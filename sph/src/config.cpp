@@ -190,6 +190,16 @@ void validate(const Config &cfg, const Geometry &geo, int ranks) {
     if (cfg.vtk_every < 0 || (cfg.vtk_dir && cfg.vtk_every == 0))
         throw UsageError("--vtk-every " + std::to_string(cfg.vtk_every) +
                          " must be >= 1 when --vtk is given");
+    if (cfg.checkpoint_every != 0 && !cfg.checkpoint_dir)
+        throw UsageError("--checkpoint-every " + std::to_string(cfg.checkpoint_every) +
+                         " needs --checkpoint DIR");
+    if (cfg.checkpoint_dir && cfg.checkpoint_every < 1)
+        throw UsageError("--checkpoint-every " + std::to_string(cfg.checkpoint_every) +
+                         " must be >= 1");
+    if (cfg.checkpoint_dir && cfg.checkpoint_every % cfg.interval != 0)
+        throw UsageError("--checkpoint-every " + std::to_string(cfg.checkpoint_every) +
+                         " must be a multiple of --interval " + std::to_string(cfg.interval) +
+                         " (a checkpoint closes a report interval)");
     if (cfg.physics.shepard_every < 0)
         throw UsageError("--shepard-every " + std::to_string(cfg.physics.shepard_every) +
                          " must be >= 0 (0 disables the filter)");

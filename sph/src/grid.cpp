@@ -70,6 +70,43 @@ void CellTable::update(const Particles &p, const CellWindow &w) {
     }
 }
 
+std::vector<std::int64_t> CellTable::save_state() const {
+    std::vector<std::int64_t> s{window_cells_};
+    for (const auto &members : cells_) {
+        s.push_back(static_cast<std::int64_t>(members.size()));
+        for (const Member &m : members) {
+            s.push_back(m.id);
+            s.push_back(m.index);
+        }
+    }
+    return s;
+}
+
+void CellTable::restore_state(const std::vector<std::int64_t> &s) {
+    const auto bad = [] { return std::runtime_error("checkpoint: malformed Cell+Table state"); };
+    if (s.empty())
+        throw bad();
+    window_cells_ = static_cast<int>(s[0]);
+    if (window_cells_ < 0)
+        throw bad();
+    cells_.assign(static_cast<std::size_t>(window_cells_), {});
+    std::fill(home_.begin(), home_.end(), -1);
+    std::size_t k = 1;
+    for (std::size_t c = 0; c < cells_.size(); ++c) {
+        if (k >= s.size() || s[k] < 0 || static_cast<std::size_t>(s[k]) > (s.size() - k - 1) / 2)
+            throw bad();
+        const auto n = static_cast<std::size_t>(s[k++]);
+        for (std::size_t i = 0; i < n; ++i, k += 2) {
+            if (s[k] < 0 || s[k + 1] < 0)
+                throw bad();
+            ensure_ids(s[k]);
+            insert(s[k], static_cast<std::uint32_t>(s[k + 1]), static_cast<std::int32_t>(c));
+        }
+    }
+    if (k != s.size())
+        throw bad();
+}
+
 void CellTable::remove_transient(const Particles &p, const CellWindow &) {
     for (std::size_t i = p.owned(); i < p.size(); ++i)
         forget(p.id[i]);

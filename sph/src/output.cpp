@@ -147,6 +147,14 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                    {"alpha", c.physics.alpha},
                    {"shepard_every", c.physics.shepard_every},
                    {"fluid_particles", run.geometry.fluid_particles()}};
+    if (c.checkpoint_dir)
+        j["config"]["checkpoint"] = {{"directory", c.checkpoint_dir->string()},
+                                     {"every_steps", c.checkpoint_every}};
+    if (run.restarted_from_step >= 0)
+        j["restart"] = {{"from_step", run.restarted_from_step},
+                        {"from", run.restarted_from.string()},
+                        {"note", "intervals and physics before from_step come from the "
+                                 "checkpoint; wall_s times the steps after it only"}};
     j["particles"] = {{"field", run.fluid_particles},
                       {"virtual", run.mean_virtual},
                       {"wall", run.wall_particles}};

@@ -1,6 +1,8 @@
 // The benchmark executables as a user runs them: tiny sizes, real reports, bad input.
 #include "run.hpp"
 
+#include <map>
+
 #include <gtest/gtest.h>
 
 using namespace sphperf::testing;
@@ -226,6 +228,57 @@ INSTANTIATE_TEST_SUITE_P(
                      "--pingpong /nonexistent/p.json --out @OUT@",
                  "/nonexistent/s.json"}),
     [](const auto &info) { return info.param.name; });
+
+// The malformed-report corpus (tests/data/malformed_reports.json): each case damages one key of a
+// real tiny report; machine-profile must exit 2 with one line naming the file and the key, and
+// write nothing.
+TEST(MachineProfileCli, RefusesEveryMalformedReportOfTheCorpus) {
+    const auto dir = scratch("malformed");
+    std::map<std::string, fs::path> good{{"stream", dir / "s.json"},
+                                         {"dgemm", dir / "d.json"},
+                                         {"pingpong", dir / "p.json"},
+                                         {"exchange", dir / "e.json"}};
+    ASSERT_EQ(
+        run(bin("stream") + tiny_stream + " --threads 1 --json " + good["stream"].string()).code,
+        0);
+    ASSERT_EQ(run(bin("dgemm") + tiny_dgemm + " --threads 1 --json " + good["dgemm"].string()).code,
+              0);
+    ASSERT_EQ(
+        run(mpirun(2) + bin("pingpong") + tiny_pingpong + " --json " + good["pingpong"].string())
+            .code,
+        0);
+    ASSERT_EQ(
+        run(mpirun(2) + bin("exchange") + tiny_exchange + " --json " + good["exchange"].string())
+            .code,
+        0);
+    const auto corpus = load(fs::path(SPHPERF_TEST_DATA_DIR) / "malformed_reports.json");
+    ASSERT_GE(corpus["cases"].size(), 20u);
+    const auto out = dir / "machine.json";
+    for (const auto &c : corpus["cases"]) {
+        const std::string name = c["name"], kind = c["report"];
+        auto j = load(good.at(kind));
+        const nlohmann::json::json_pointer ptr(c["pointer"].get<std::string>());
+        if (c.value("remove", false))
+            j.at(ptr.parent_pointer()).erase(ptr.back());
+        else
+            j[ptr] = c["value"];
+        const auto bad = dir / (name + ".json");
+        std::ofstream(bad) << j.dump();
+        auto path = good;
+        path[kind] = bad;
+        const auto r =
+            run(bin("machine-profile") + " --stream " + path["stream"].string() + " --dgemm " +
+                path["dgemm"].string() + " --pingpong " + path["pingpong"].string() +
+                " --exchange " + path["exchange"].string() + " --out " + out.string());
+        EXPECT_EQ(r.code, 2) << name << ": " << r.err;
+        EXPECT_EQ(r.err_lines(), 1) << name << ": " << r.err;
+        EXPECT_NE(r.err.find(bad.string()), std::string::npos) << name << ": " << r.err;
+        EXPECT_NE(r.err.find(c["expect"].get<std::string>()), std::string::npos)
+            << name << ": " << r.err;
+        EXPECT_FALSE(fs::exists(out)) << name;
+        fs::remove(out);
+    }
+}
 
 TEST(Help, EveryExecutableHasHelp) {
     for (const char *exe : {"stream", "dgemm", "pingpong", "machine-profile"}) {

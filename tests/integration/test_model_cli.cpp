@@ -155,6 +155,9 @@ TEST_P(ModelBadInputTest, ExitsTwoWithOneLineAndNoFile) {
         j = load(f.run2);
         j["intervals"][1]["ranks"][0]["pairs"] = -5;
         std::ofstream(f.dir / "negative.json") << j.dump();
+        j = load(f.run2);
+        j["restart"] = {{"from_step", 100}, {"from", "ck"}};
+        std::ofstream(f.dir / "restarted.json") << j.dump();
     }
     std::string args = GetParam().args;
     for (auto [key, value] : {std::pair<std::string, std::string>{"MACHINE", f.machine.string()},
@@ -185,6 +188,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadModelInput{"negative",
                       "calibrate --allow-other-host --machine MACHINE --runs DIR/negative.json",
                       "pairs"},
+        BadModelInput{"restarted_run",
+                      "calibrate --allow-other-host --machine MACHINE --runs DIR/restarted.json",
+                      "continues a checkpoint (sph --restart, from step 100)"},
         BadModelInput{"unknown_setup", "predict --model MODEL --setup tsunami --steps 10",
                       "tsunami"},
         BadModelInput{"unknown_grid", "predict --model MODEL --grid octree --steps 10", "octree"},

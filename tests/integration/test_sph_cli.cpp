@@ -239,17 +239,32 @@ TEST_P(SphBadInputTest, ExitsTwoWithOneLineAndNoFile) {
 
 INSTANTIATE_TEST_SUITE_P(
     Sph, SphBadInputTest,
-    ::testing::Values(SphBadInput{"setup", "--setup tsunami --steps 1", "tsunami"},
-                      SphBadInput{"grid", "--grid octree --steps 1", "octree"},
-                      SphBadInput{"boundary", "--boundary sticky --steps 1", "sticky"},
-                      SphBadInput{"scale_zero", "--scale 0 --steps 1", "--scale 0"},
-                      SphBadInput{"scale_negative", "--scale -1 --steps 1", "--scale -1"},
-                      SphBadInput{"unstable_dt", "--dt 2e-4 --steps 1", "unstable"},
-                      SphBadInput{"no_length", "", "--steps"},
-                      SphBadInput{"too_many_ranks", "--scale 0.02 --steps 1",
-                                  "3 ranks exceed the 2", 3},
-                      SphBadInput{"report_path", "--steps 1 --report /nonexistent/dir/r.json",
-                                  "/nonexistent/dir/r.json"}),
+    ::testing::Values(
+        SphBadInput{"setup", "--setup tsunami --steps 1", "tsunami"},
+        SphBadInput{"grid", "--grid octree --steps 1", "octree"},
+        SphBadInput{"boundary", "--boundary sticky --steps 1", "sticky"},
+        SphBadInput{"scale_zero", "--scale 0 --steps 1", "--scale: value 0"},
+        SphBadInput{"scale_negative", "--scale -1 --steps 1", "--scale: value -1"},
+        SphBadInput{"unstable_dt", "--dt 2e-4 --steps 1", "unstable"},
+        SphBadInput{"no_length", "", "--steps"},
+        SphBadInput{"too_many_ranks", "--scale 0.02 --steps 1", "3 ranks exceed the 2", 3},
+        SphBadInput{"report_path", "--steps 1 --report /nonexistent/dir/r.json",
+                    "/nonexistent/dir/r.json"},
+        SphBadInput{"checkpoint_every_not_interval",
+                    "--steps 1 --interval 100 --checkpoint-every 150 "
+                    "--checkpoint /nonexistent_sphperf/ck",
+                    "must be a multiple of --interval 100"},
+        SphBadInput{"checkpoint_every_alone", "--steps 1 --checkpoint-every 100",
+                    "needs --checkpoint DIR"},
+        SphBadInput{"too_big_for_memory", "--delta 0.00002 --dt 1e-7 --steps 1", "bytes available"},
+        SphBadInput{"nan_alpha", "--alpha nan --steps 1",
+                    "--alpha: value nan is not a finite number"},
+        SphBadInput{"inf_scale", "--scale inf --steps 1",
+                    "--scale: value inf is not a finite number > 0"},
+        SphBadInput{"zero_threads", "--threads 0 --steps 1", "--threads"},
+        SphBadInput{"steps_overflow", "--steps 99999999999999999999", "--steps"},
+        SphBadInput{"restart_missing_dir", "--steps 1 --restart /nonexistent_ck",
+                    "/nonexistent_ck"}),
     [](const auto &info) { return info.param.name; });
 
 // An error on one rank ends the whole job: no rank is left waiting in an exchange (a hang

@@ -59,6 +59,24 @@ inline const CLI::Validator Finite(
     },
     "FINITE");
 
+// A finite number above (or at least) a bound, with a one-line message naming the value.
+inline CLI::Validator finite_above(double bound, bool or_equal) {
+    const std::string want = std::string(or_equal ? ">= " : "> ") + CLI::detail::to_string(bound);
+    return CLI::Validator(
+        [bound, or_equal, want](const std::string &s) {
+            try {
+                const double v = std::stod(s);
+                if (std::isfinite(v) && (or_equal ? v >= bound : v > bound))
+                    return std::string();
+            } catch (const std::exception &) {
+            }
+            return "value " + s + " is not a finite number " + want;
+        },
+        "FINITE " + want);
+}
+inline const CLI::Validator FinitePositive = finite_above(0.0, false);
+inline const CLI::Validator FiniteNonNegative = finite_above(0.0, true);
+
 // Runs a program body and maps exceptions to exit codes with a one-line message on stderr.
 template <class Body> int guarded_main(std::string_view program, Body &&body) {
     try {

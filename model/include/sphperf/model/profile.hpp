@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -11,6 +12,13 @@ namespace sphperf::model {
 
 // Reads a benchmark report and checks it is the expected kind; throws UsageError naming the file.
 nlohmann::json load_report(const std::filesystem::path &path, std::string_view benchmark);
+
+// Checks that a benchmark report of kind `benchmark` ("stream", "dgemm", "dgemm-alternative",
+// "pingpong", "exchange") holds every figure the profile reads, each of the right type and
+// range (finite, positive where a time or a rate; non-empty arrays; rank numbers in range).
+// Throws UsageError with one line naming `where` (the file) and the JSON pointer of the key.
+void check_report(const nlohmann::json &report, std::string_view benchmark,
+                  const std::string &where);
 
 // `header` is the envelope of the profile itself (schema, commit, host, topology).
 // `dgemm_alternatives` are DGEMM reports run with another OpenBLAS core type (may be empty);

@@ -90,6 +90,9 @@ struct Config {
     std::optional<std::filesystem::path> vtk_dir;
     int vtk_every = 0;
     bool quiet = false;
+    std::optional<std::filesystem::path> checkpoint_dir; // write checkpoints here
+    int checkpoint_every = 0;                            // steps; 0: the report interval
+    std::optional<std::filesystem::path> restart_dir;    // continue from its latest checkpoint
     std::optional<FaultInjection> fault;
     Physics physics;
 

@@ -49,6 +49,10 @@ concept CellGrid = requires(G g, const G cg, const Particles &p, const CellWindo
     g.forget(id);             // an owned particle left this rank
     cg.for_each_in_cell(0, p, visit);
     { cg.last_moves() } -> std::convertible_to<std::size_t>;
+    // What a checkpoint keeps of the grid: a restart at the same rank count resumes it as it
+    // was (its order decides the counters, not the physics). Empty for a grid rebuilt each step.
+    { cg.save_state() } -> std::same_as<std::vector<std::int64_t>>;
+    g.restore_state(std::vector<std::int64_t>{});
 };
 
 // Cell+List: head[cell] and next[particle], rebuilt every step; lock-free parallel insertion.
@@ -61,6 +65,8 @@ public:
     void remove_transient(const Particles &, const CellWindow &) {}
     void forget(std::int64_t) {}
     std::size_t last_moves() const { return moves_; }
+    std::vector<std::int64_t> save_state() const { return {}; } // rebuilt every step
+    void restore_state(const std::vector<std::int64_t> &) {}
 
     template <class F> void for_each_in_cell(int cell, const Particles &, F &&f) const {
         for (std::int32_t i = head_[static_cast<std::size_t>(cell)]; i >= 0;
@@ -86,6 +92,9 @@ public:
     void remove_transient(const Particles &p, const CellWindow &w);
     void forget(std::int64_t id);
     std::size_t last_moves() const { return moves_; }
+    // The window's cell count, then per cell its member count and (id, index) pairs in order.
+    std::vector<std::int64_t> save_state() const;
+    void restore_state(const std::vector<std::int64_t> &s);
 
     template <class F> void for_each_in_cell(int cell, const Particles &, F &&f) const {
         for (const Member &m : cells_[static_cast<std::size_t>(cell)])

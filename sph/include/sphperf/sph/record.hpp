@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <filesystem>
 #include <vector>
 
 namespace sphperf::sph {
@@ -67,9 +68,11 @@ struct RunRecord {
     std::vector<double> peak_rss_bytes;                                             // per rank
     std::vector<std::array<double, static_cast<std::size_t>(Phase::count)>> timers; // per rank
     std::vector<double> idle_s;                                                     // per rank
-    std::vector<double> initial_columns; // fluid particles per cell column at t = 0
-    std::vector<double> wall_columns;    // fixed wall particles per cell column (static)
-    std::vector<int> placement_pus;      // first processing unit each rank is bound to, -1: none
+    std::vector<double> initial_columns;   // fluid particles per cell column at t = 0
+    std::vector<double> wall_columns;      // fixed wall particles per cell column (static)
+    std::vector<int> placement_pus;        // first processing unit each rank is bound to, -1: none
+    std::int64_t restarted_from_step = -1; // the checkpoint's step, -1: not a restart
+    std::filesystem::path restarted_from;  // its directory
 };
 
 } // namespace sphperf::sph

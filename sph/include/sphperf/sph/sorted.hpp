@@ -40,6 +40,8 @@ public:
     void remove_transient(const Particles &, const CellWindow &) {}
     void forget(std::int64_t) {}
     std::size_t last_moves() const { return moves_; }
+    std::vector<std::int64_t> save_state() const { return {}; } // sorted anew every step
+    void restore_state(const std::vector<std::int64_t> &) {}
     // Window cell numbering (row-major, CellWindow::cell) in, original indices out.
     template <class F> void for_each_in_cell(int cell, const Particles &, F &&f) const {
         const int k = sorted_cell(cell);

@@ -1,0 +1,26 @@
+#pragma once
+// The memory model's counts (model/README.md "Memory"), from our data structures: what one
+// stored particle and one stored interaction cost. Calibration adds the fixed part; `sph` uses
+// the counts alone to refuse, before it allocates, a run that cannot fit.
+#include <string_view>
+
+namespace sphperf::model {
+
+// 10 doubles of SoA, id, kind, list offset, grid slot.
+constexpr double bytes_per_particle = 10 * 8 + 8 + 1 + 4 + 8 + 4;
+// The list index, the per-thread search block kept across steps (up to 2x capacity).
+constexpr double bytes_per_interaction = 4 + 2 * 4 + 4;
+// Cell+Sorted stores no pairs and no list offsets, but a cell-ordered copy of every particle:
+// x, y, vx, vy, rho, p, mass, fluid (8 doubles), id, original index and cell key.
+constexpr double sorted_bytes_per_particle = bytes_per_particle - 4 + 8 * 8 + 8 + 4 + 4;
+
+struct MemoryCounts {
+    double per_particle, per_interaction;
+};
+constexpr MemoryCounts memory_counts(std::string_view grid) {
+    if (grid == "sorted")
+        return {sorted_bytes_per_particle, 0.0};
+    return {bytes_per_particle, bytes_per_interaction};
+}
+
+} // namespace sphperf::model
