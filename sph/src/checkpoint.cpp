@@ -29,7 +29,8 @@ public:
     template <class T> void put(const std::vector<T> &v) {
         static_assert(std::is_trivially_copyable_v<T>);
         put<std::uint64_t>(v.size());
-        buf_.append(reinterpret_cast<const char *>(v.data()), v.size() * sizeof(T));
+        if (!v.empty()) // an empty vector's data() may be null
+            buf_.append(reinterpret_cast<const char *>(v.data()), v.size() * sizeof(T));
     }
     void magic(const char (&m)[8]) { buf_.append(m, 8); }
     std::string take() { return std::move(buf_); }
@@ -55,7 +56,8 @@ public:
             throw UsageError(where_ + ": truncated (an array of " + std::to_string(n) +
                              " elements runs past the end of the file)");
         std::vector<T> v(n);
-        std::memcpy(v.data(), b_.data() + pos_, n * sizeof(T));
+        if (n > 0) // memcpy from or to null is undefined even for 0 bytes (UBSan)
+            std::memcpy(v.data(), b_.data() + pos_, n * sizeof(T));
         pos_ += n * sizeof(T);
         return v;
     }
