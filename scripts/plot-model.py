@@ -203,10 +203,19 @@ def markdown(model, validation, args, out):
                      f"calibration runs: {runs}; the model takes the median, {t['overhead']:.2f} (mean "
                      f"{t.get('overhead_mean', float('nan')):.2f}, spread {t.get('overhead_min', float('nan')):.2f}-"
                      f"{t.get('overhead_max', float('nan')):.2f}). Other loads use the exchange benchmark's.")
+    j = model.get("jitter")
+    if j:
+        runs = ", ".join(f"{r['sigma']:.3f}" for r in j["runs"])
+        lines.append(f"Step-to-step jitter (relative standard deviation of a rank's compute per step, "
+                     f"from the calibration runs within the cores whose ranks are all busy): {runs}; the "
+                     f"model takes the median, {j['sigma']:.3f} (mean {j['sigma_mean']:.3f}, spread "
+                     f"{j['sigma_min']:.3f}-{j['sigma_max']:.3f}). Within the cores a step lasts the expected "
+                     f"maximum of the ranks' compute + communication.")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
-                 "compute | comm | wait | idle | pairs | exports (edge) | exports (regression) | peak RSS (MB, error) |")
-    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+                 "compute | comm | wait | idle | pairs | pairs (regression) | exports (edge) | "
+                 "exports (regression) | peak RSS (MB, error) |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     def rss(r):
         m = r.get("peak_rss_bytes")
         return f"{m['measured_max_rank'] / 1e6:.1f}, {100 * m['error']:+.1f} %" if m else "-"
@@ -220,7 +229,8 @@ def markdown(model, validation, args, out):
             f"{r['predicted_wall_s']:.2f} | **{pct(r['wall_error'])}** | {pct(ph['compute']['error'])} | "
             f"{pct(ph['comm']['error'])} | {pct(ph['wait']['error'])} | "
             f"{pct(ph['idle']['error']) if ph['idle']['measured_s'] > 0 or ph['idle']['predicted_s'] > 0 else '-'} | "
-            f"{pct(r['pairs_per_step']['error'])} | {pct(r['exported_per_step']['error_edge_columns'])} | "
+            f"{pct(r['pairs_per_step']['error'])} | {pct(r['pairs_per_step']['error_regression'])} | "
+            f"{pct(r['exported_per_step']['error_edge_columns'])} | "
             f"{pct(r['exported_per_step']['error_regression'])} | {rss(r)} |")
     s = validation["summary"]
     lines.append("")

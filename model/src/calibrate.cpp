@@ -1,6 +1,7 @@
 // sphmodel calibrate: the thesis regressions, the compute-cost fit with terms chosen by
 // cross-validation, the roofline placement, the communication links and the workload traces.
 #include "sphperf/cli.hpp"
+#include "sphperf/model/jitter.hpp"
 #include "sphperf/model/memory.hpp"
 #include "sphperf/model/runtime.hpp"
 #include "sphperf/stats.hpp"
@@ -45,6 +46,28 @@ using nlohmann::json;
 
 bool time_shared(const SphRun &r, int cores) {
     return r.config.ranks * r.config.threads > cores;
+}
+
+// The compute entry of a run's grid and thread count, nullptr when calibration has none.
+const json *compute_entry(const json &compute, const SphRun &r) {
+    for (const auto &c : compute)
+        if (c.at("grid") == r.config.grid && c.at("threads") == r.config.threads)
+            return &c;
+    return nullptr;
+}
+
+// The predicted compute per step of every rank of an interval.
+std::vector<double> fitted_compute(const LinearFit &f, const IntervalStats &iv) {
+    std::vector<double> out;
+    for (const auto &rk : iv.ranks) {
+        const RankWork w{rk.field_mean,   rk.virtual_,   rk.ghost,
+                         rk.interactions, rk.cell_moves, rk.descents};
+        std::vector<double> x;
+        for (const auto &t : f.terms)
+            x.push_back(w.value(t));
+        out.push_back(std::max(0.0, f.predict(x)));
+    }
+    return out;
 }
 
 struct Point {
@@ -344,28 +367,22 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
     for (const auto &r : runs) {
         if (!time_shared(r, cores))
             continue;
-        const json *entry = nullptr;
-        for (const auto &c : compute)
-            if (c.at("grid") == r.config.grid && c.at("threads") == r.config.threads)
-                entry = &c;
+        const json *entry = compute_entry(compute, r);
         if (!entry)
             continue;
         const LinearFit f = compute_cost_of(*entry, r.config.setup);
         double bound = 0, measured = 0;
         for (const auto &iv : r.intervals) {
             double steps = 0, demand = 0, slowest = 0, longest = 0;
-            for (const auto &rk : iv.ranks) {
-                const RankWork w{rk.field_mean,   rk.virtual_,   rk.ghost,
-                                 rk.interactions, rk.cell_moves, rk.descents};
-                std::vector<double> x;
-                for (const auto &t : f.terms)
-                    x.push_back(w.value(t));
-                const double c = std::max(0.0, f.predict(x));
+            const std::vector<double> fitted = fitted_compute(f, iv);
+            for (std::size_t k = 0; k < iv.ranks.size(); ++k) {
+                const auto &rk = iv.ranks[k];
+                const double c = fitted[k];
                 demand += c * r.config.threads;
                 slowest = std::max(slowest, c);
                 steps = std::max(steps, rk.steps);
                 double timers = 0;
-                for (const auto &[k, v] : rk.timers)
+                for (const auto &[name, v] : rk.timers)
                     timers += v;
                 longest = std::max(longest, timers);
             }
@@ -401,6 +418,67 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
                                   "the intervals where that bound exceeds the slowest rank"}});
     }
     return out;
+}
+// Step-to-step jitter, from the runs within the cores whose ranks all hold field particles:
+// the relative standard deviation sigma of each rank's compute per step for which the model's
+// wait (every step lasts the expected maximum of the ranks' compute + communication) equals
+// the measured wait. Each rank's compute is the fitted one at the run's own level (measured over
+// fitted), so sigma also covers imbalance the model cannot foresee (two cores at different
+// speeds), and the communication is the measured one (validated apart).
+json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
+    json per_run = json::array();
+    std::vector<double> sigmas;
+    for (const auto &r : runs) {
+        const json *entry = compute_entry(compute, r);
+        if (time_shared(r, cores) || r.config.ranks < 2 || !entry)
+            continue;
+        const LinearFit f = compute_cost_of(*entry, r.config.setup);
+        std::vector<BusyInterval> busy;
+        double measured_compute = 0, fitted_sum = 0, measured_wait = 0, steps = 0;
+        for (const auto &iv : r.intervals) {
+            const bool all_busy = std::all_of(iv.ranks.begin(), iv.ranks.end(), [](const auto &k) {
+                return k.field_mean > 0 && k.steps >= 1;
+            });
+            if (!all_busy)
+                continue;
+            BusyInterval b{iv.ranks.front().steps, fitted_compute(f, iv), {}};
+            for (const auto &rk : iv.ranks) {
+                b.comm_s.push_back(rk.timer("comm_s") / rk.steps);
+                measured_compute += rk.compute_s();
+                measured_wait += rk.timer("wait_s");
+            }
+            for (double c : b.compute_s)
+                fitted_sum += c * b.steps;
+            steps += b.steps;
+            busy.push_back(std::move(b));
+        }
+        if (busy.empty() || !(fitted_sum > 0))
+            continue;
+        // The fitted compute at this run's own level: sigma is jitter, not the machine's drift.
+        for (auto &b : busy)
+            for (auto &c : b.compute_s)
+                c *= measured_compute / fitted_sum;
+        const double sigma = fit_jitter(busy, measured_wait);
+        sigmas.push_back(sigma);
+        per_run.push_back({{"run", r.path},
+                           {"sigma", sigma},
+                           {"at_bound", sigma >= jitter_sigma_max},
+                           {"measured_wait_s", measured_wait},
+                           {"modelled_wait_without_jitter_s", modelled_wait(busy, 0)},
+                           {"busy_steps", steps}});
+    }
+    if (sigmas.empty())
+        return nullptr;
+    const Summary s = sphperf::summarize(sigmas);
+    return {{"sigma", s.median},
+            {"sigma_mean", s.avg},
+            {"sigma_min", s.min},
+            {"sigma_max", s.max},
+            {"uses", "median"},
+            {"runs", per_run},
+            {"method", "per run within the cores with every rank busy: the relative standard "
+                       "deviation of a rank's compute per step for which the expected maximum "
+                       "over ranks reproduces the measured wait; the median over runs"}};
 }
 } // namespace
 
@@ -507,6 +585,8 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
                          " cores: the compute cost needs at least one run within them");
     model["compute"] = compute;
     model["time_sharing"] = time_sharing(runs, compute, cores);
+    if (json j = jitter(runs, compute, cores); !j.is_null())
+        model["jitter"] = j;
     json moves = json::object();
     for (const auto &[grid, pts] : by_grid)
         moves[grid] = cell_move_fit(pts);

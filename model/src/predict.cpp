@@ -2,6 +2,7 @@
 // from the fitted compute model and the Hockney links, then the blocking exchange's wait, the
 // idle ranks, and time-sharing when ranks x threads exceed the cores.
 #include "sphperf/cli.hpp"
+#include "sphperf/model/jitter.hpp"
 #include "sphperf/model/runtime.hpp"
 
 #include <algorithm>
@@ -30,6 +31,9 @@ struct Costs {
     // Time-sharing overhead measured on the app's own calibration runs, by load (ranks x
     // threads / cores); a load it did not run falls back to the exchange benchmark's.
     std::map<double, double> sharing;
+    // Relative step-to-step jitter of a rank's compute (0: none measured); within the cores a
+    // step lasts the expected maximum over the ranks.
+    double jitter = 0;
     // Peak RSS per rank (model/README.md "Memory"); absent in a model without calibration RSS.
     double bytes_per_particle = 0, bytes_per_interaction = 0, fixed_bytes = 0;
 };
@@ -80,6 +84,8 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         c.exchange = ExchangeModel::from_profile(model.at("machine"));
         c.record_bytes = model.at("record_bytes").get<double>();
         c.cores = model.at("machine").at("cores").get<int>();
+        if (model.contains("jitter"))
+            c.jitter = model.at("jitter").at("sigma").get<double>();
         if (model.contains("time_sharing"))
             for (const auto &t : model.at("time_sharing"))
                 c.sharing[t.at("load").get<double>()] = t.at("overhead").get<double>();
@@ -106,7 +112,8 @@ double linear_law(const LinearFit &f, double n) {
 
 struct RankStep {
     double field = 0, walls = 0, ghost = 0, exported = 0, exported_regression = 0, pairs = 0,
-           interactions = 0, compute_s = 0, comm_s = 0, wait_s = 0, idle_s = 0;
+           pairs_regression = 0, interactions = 0, compute_s = 0, comm_s = 0, wait_s = 0,
+           idle_s = 0;
 };
 
 // The time-sharing overhead at this many processes x threads, and where it comes from.
@@ -124,8 +131,8 @@ std::pair<double, const char *> sharing_overhead(const Costs &c, int processes,
 }
 
 // One step of every rank at simulated time t, from the workload of the slabs.
-std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Costs &c, int threads,
-                                   double t, double &step_s) {
+std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const WorkDensity &density,
+                                   const Costs &c, int threads, double t, double &step_s) {
     const double disorder = c.disorder ? c.disorder->at(t, c.delta) : 0.0;
     const int P = static_cast<int>(loads.size());
     const bool shared = P * threads > c.cores;
@@ -140,8 +147,11 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
         s.ghost = l.ghost;
         s.exported = l.exported;
         s.exported_regression = linear_law(c.exports, l.field);
-        s.pairs = linear_law(c.pairs, l.field);
-        s.interactions = linear_law(c.interactions, l.field);
+        // Pairs follow the flow: the trace's pairs per field particle at this Froude time (the
+        // thesis' law, fitted over a whole run, is reported beside: it misses the time trend).
+        s.pairs = density.pairs * l.field;
+        s.pairs_regression = linear_law(c.pairs, l.field);
+        s.interactions = density.interactions * l.field;
         std::vector<double> xm;
         for (const auto &t : c.cell_moves.terms)
             xm.push_back(t == "field"   ? l.field
@@ -165,7 +175,6 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
     const double gap = busy / shifts_per_step;
     const ExchangeSet *set =
         c.exchange.empty() ? nullptr : &c.exchange.set_for(P, threads, c.cores);
-    double longest = 0;
     for (int r = 0; r < P && P > 1; ++r) {
         const SlabLoad &l = loads[static_cast<std::size_t>(r)];
         RankStep &s = out[static_cast<std::size_t>(r)];
@@ -191,9 +200,15 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Cos
                          l.export_west * per_particle, std::max(0.0, in_from_east) * per_particle);
         };
         s.comm_s = exchange(0.0) + exchange(c.record_bytes) + exchange(density_bytes);
-        longest = std::max(longest, s.compute_s + s.comm_s);
     }
-    longest = std::max(longest, slowest);
+    // Within the cores the step lasts as long as the slowest rank's compute + communication,
+    // each compute with its step-to-step jitter: the expected maximum, not the largest mean.
+    std::vector<double> mean, sd;
+    for (const auto &s : out) {
+        mean.push_back(s.compute_s + s.comm_s);
+        sd.push_back(c.jitter * s.compute_s);
+    }
+    const double longest = expected_max(mean, sd);
     // The exchanges are blocking: every rank's step lasts as long as the slowest. Time-sharing
     // costs more than the demand per core (switches, ranks waiting for a descheduled
     // neighbour): the exchange benchmark's round overhead at this rank count and gap.
@@ -242,14 +257,15 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"timestamp", model.value("timestamp", "")},
                            {"trace", trace.source},
                            {"trace_scale", trace.scale},
-                           {"trace_delta", trace.delta}};
+                           {"trace_delta", trace.delta},
+                           {"jitter_sigma", c.jitter}};
     out["fluid_particles"] = probe.fluid_particles;
     json configs = json::array();
     for (int P : req.ranks) {
         const Target tgt =
             make_target(req.setup, req.grid, req.scale, req.delta, req.dt, P, req.threads);
         json intervals = json::array();
-        std::vector<double> tot(static_cast<std::size_t>(P) * 6, 0.0);
+        std::vector<RankStep> tot(static_cast<std::size_t>(P)); // sums over the run's steps
         // Largest stored particle count and interaction count of each rank at any sample.
         std::vector<double> peak_particles(static_cast<std::size_t>(P), 0.0),
             peak_interactions(static_cast<std::size_t>(P), 0.0);
@@ -262,13 +278,14 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
             for (int k = 0; k < samples_per_interval; ++k) {
                 const double t =
                     req.dt * (static_cast<double>(s0) + (k + 0.5) * n / samples_per_interval);
-                const auto src = histogram_at(trace, source_time(t, trace.scale, req.scale));
+                const double ts = source_time(t, trace.scale, req.scale);
+                const auto src = histogram_at(trace, ts);
                 const auto cols =
                     rescale_columns(src, trace.cell_size, trace.tank_length, tgt.cell_size,
                                     tgt.tank_length, tgt.columns, tgt.fluid_particles);
                 double step_s = 0;
-                const auto ranks =
-                    predict_step(recut(cols, tgt.wall_columns, P), c, req.threads, t, step_s);
+                const auto ranks = predict_step(recut(cols, tgt.wall_columns, P),
+                                                density_at(trace, ts), c, req.threads, t, step_s);
                 step_mean += step_s / samples_per_interval;
                 for (std::size_t r = 0; r < ranks.size(); ++r) {
                     auto &m = mean[r];
@@ -281,6 +298,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                               {&m.exported, v.exported},
                                               {&m.exported_regression, v.exported_regression},
                                               {&m.pairs, v.pairs},
+                                              {&m.pairs_regression, v.pairs_regression},
                                               {&m.interactions, v.interactions},
                                               {&m.compute_s, v.compute_s},
                                               {&m.comm_s, v.comm_s},
@@ -300,18 +318,20 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                               {"exported", m.exported},
                               {"exported_regression", m.exported_regression},
                               {"pairs", m.pairs},
+                              {"pairs_regression", m.pairs_regression},
                               {"interactions", m.interactions},
                               {"compute_s", m.compute_s * n},
                               {"comm_s", m.comm_s * n},
                               {"wait_s", m.wait_s * n},
                               {"idle_s", m.idle_s * n}});
-                double *t = &tot[r * 6];
-                t[0] += m.compute_s * n;
-                t[1] += m.comm_s * n;
-                t[2] += m.wait_s * n;
-                t[3] += m.idle_s * n;
-                t[4] += m.pairs * n;
-                t[5] += m.exported * n;
+                RankStep &t = tot[r];
+                t.compute_s += m.compute_s * n;
+                t.comm_s += m.comm_s * n;
+                t.wait_s += m.wait_s * n;
+                t.idle_s += m.idle_s * n;
+                t.pairs += m.pairs * n;
+                t.pairs_regression += m.pairs_regression * n;
+                t.exported += m.exported * n;
             }
             if (all_busy && idle_onset_step < 0)
                 idle_onset_step = static_cast<double>(s0);
@@ -324,17 +344,19 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         json per_rank = json::array();
         double compute = 0, comm = 0, wait = 0, idle = 0;
         for (int r = 0; r < P; ++r) {
-            const double *t = &tot[static_cast<std::size_t>(r) * 6];
-            per_rank.push_back({{"compute_s", t[0]},
-                                {"comm_s", t[1]},
-                                {"wait_s", t[2]},
-                                {"idle_s", t[3]},
-                                {"pairs_per_step", t[4] / static_cast<double>(steps)},
-                                {"exported_per_step", t[5] / static_cast<double>(steps)}});
-            compute += t[0];
-            comm += t[1];
-            wait += t[2];
-            idle += t[3];
+            const RankStep &t = tot[static_cast<std::size_t>(r)];
+            const auto per_step = [&](double v) { return v / static_cast<double>(steps); };
+            per_rank.push_back({{"compute_s", t.compute_s},
+                                {"comm_s", t.comm_s},
+                                {"wait_s", t.wait_s},
+                                {"idle_s", t.idle_s},
+                                {"pairs_per_step", per_step(t.pairs)},
+                                {"pairs_regression_per_step", per_step(t.pairs_regression)},
+                                {"exported_per_step", per_step(t.exported)}});
+            compute += t.compute_s;
+            comm += t.comm_s;
+            wait += t.wait_s;
+            idle += t.idle_s;
         }
         json memory = nullptr;
         if (c.bytes_per_particle > 0) {

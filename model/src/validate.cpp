@@ -77,9 +77,10 @@ json validate(const json &header, const std::vector<json> &predictions,
         };
         json comm_phase = phase("comm_s", comm);
         comm_phase["inline_s"] = inline_c;
-        double p_pairs = 0, p_exp = 0;
+        double p_pairs = 0, p_pairs_reg = 0, p_exp = 0;
         for (const auto &r : p->at("per_rank")) {
             p_pairs += r.at("pairs_per_step").get<double>();
+            p_pairs_reg += r.at("pairs_regression_per_step").get<double>();
             p_exp += r.at("exported_per_step").get<double>();
         }
         double p_exp_reg = 0;
@@ -144,7 +145,9 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"pairs_per_step",
                   {{"counted", pairs / steps},
                    {"predicted", p_pairs},
-                   {"error", rel(p_pairs, pairs / steps)}}},
+                   {"error", rel(p_pairs, pairs / steps)},
+                   {"predicted_regression", p_pairs_reg},
+                   {"error_regression", rel(p_pairs_reg, pairs / steps)}}},
                  {"exported_per_step",
                   {{"counted", exported / steps},
                    {"predicted_edge_columns", p_exp},
@@ -228,6 +231,13 @@ std::string calibration_table(const json &m) {
         for (const auto &[t, v] : c.at("coefficients").items())
             s += fmt("    %-13s %12.4g s  +- %.3g (%.1f %%)\n", t.c_str(), d(v.at("value")),
                      d(v.at("se")), d(v.at("se_pct")));
+    }
+    if (m.contains("jitter")) {
+        const auto &j = m.at("jitter");
+        s += fmt("Step-to-step jitter of a rank's compute (all-busy runs within the cores): sigma "
+                 "%.3f (median of %zu runs; mean %.3f, spread %.3f-%.3f)\n",
+                 d(j.at("sigma")), j.at("runs").size(), d(j.at("sigma_mean")), d(j.at("sigma_min")),
+                 d(j.at("sigma_max")));
     }
     const auto &rl = m.at("roofline");
     s += fmt("Roofline: %.1f flops and %.1f bytes per interaction (thesis 89 and 56), intensity "

@@ -13,9 +13,16 @@
 namespace sphperf::model {
 
 nlohmann::json Trace::to_json() const {
-    return {{"setup", setup},     {"source", source},       {"scale", scale},
-            {"delta", delta},     {"cell_size", cell_size}, {"tank_length", tank_length},
-            {"times_s", times_s}, {"columns", columns}};
+    return {{"setup", setup},
+            {"source", source},
+            {"scale", scale},
+            {"delta", delta},
+            {"cell_size", cell_size},
+            {"tank_length", tank_length},
+            {"times_s", times_s},
+            {"columns", columns},
+            {"pairs_per_field", pairs_per_field},
+            {"interactions_per_field", interactions_per_field}};
 }
 
 Trace Trace::from_json(const nlohmann::json &j, const std::string &where) {
@@ -29,13 +36,18 @@ Trace Trace::from_json(const nlohmann::json &j, const std::string &where) {
         t.tank_length = j.at("tank_length").get<double>();
         t.times_s = j.at("times_s").get<std::vector<double>>();
         t.columns = j.at("columns").get<std::vector<std::vector<double>>>();
+        t.pairs_per_field = j.at("pairs_per_field").get<std::vector<double>>();
+        t.interactions_per_field = j.at("interactions_per_field").get<std::vector<double>>();
     } catch (const nlohmann::json::exception &e) {
         throw UsageError(where + ": " + e.what());
     }
-    if (t.times_s.empty() || t.times_s.size() != t.columns.size() || !(t.cell_size > 0) ||
+    if (t.times_s.empty() || t.times_s.size() != t.columns.size() ||
+        t.times_s.size() != t.pairs_per_field.size() ||
+        t.times_s.size() != t.interactions_per_field.size() || !(t.cell_size > 0) ||
         !(t.tank_length > 0))
-        throw UsageError(where + ": a trace needs as many histograms as times, and positive "
-                                 "cell_size and tank_length");
+        throw UsageError(where + ": a trace needs as many histograms, pairs_per_field and "
+                                 "interactions_per_field as times, and positive cell_size and "
+                                 "tank_length");
     return t;
 }
 
@@ -52,6 +64,23 @@ Trace trace_of(const SphRun &run) {
     for (const auto &iv : run.intervals) {
         t.times_s.push_back(iv.time_s);
         t.columns.push_back(iv.columns);
+        double field = 0, pairs = 0, interactions = 0;
+        for (const auto &rk : iv.ranks) {
+            field += rk.field_mean;
+            pairs += rk.pairs;
+            interactions += rk.interactions;
+        }
+        t.pairs_per_field.push_back(field > 0 ? pairs / field : 0.0);
+        t.interactions_per_field.push_back(field > 0 ? interactions / field : 0.0);
+    }
+    // t = 0 takes the first interval's density (the lattice barely moves in one interval).
+    if (!run.intervals.empty()) {
+        t.pairs_per_field.insert(t.pairs_per_field.begin(), t.pairs_per_field.front());
+        t.interactions_per_field.insert(t.interactions_per_field.begin(),
+                                        t.interactions_per_field.front());
+    } else {
+        t.pairs_per_field.push_back(0.0);
+        t.interactions_per_field.push_back(0.0);
     }
     return t;
 }
@@ -156,20 +185,31 @@ Bracket bracket(const std::vector<double> &times, double t) {
     const double t0 = times[k - 1], t1 = times[k];
     return {k - 1, k, t1 > t0 ? (t - t0) / (t1 - t0) : 1.0};
 }
-} // namespace
 
-std::vector<double> histogram_at(const Trace &trace, double t) {
+void require_reach(const Trace &trace, double t) {
     constexpr double tolerance = 1e-9;
     if (t > trace.end_time() + tolerance)
         throw UsageError("the prediction needs the " + trace.setup + " trace up to " + num(t) +
                          " s of simulated time at scale " + num(trace.scale) +
                          ", but the calibration recorded only " + num(trace.end_time()) +
                          " s: calibrate with a run reaching --end-time " + num(t));
+}
+} // namespace
+
+std::vector<double> histogram_at(const Trace &trace, double t) {
+    require_reach(trace, t);
     const auto [lo, hi, w] = bracket(trace.times_s, t);
     std::vector<double> h(trace.columns[hi].size());
     for (std::size_t c = 0; c < h.size(); ++c)
         h[c] = (1 - w) * trace.columns[lo][c] + w * trace.columns[hi][c];
     return h;
+}
+
+WorkDensity density_at(const Trace &trace, double t) {
+    require_reach(trace, t);
+    const auto [lo, hi, w] = bracket(trace.times_s, t);
+    return {(1 - w) * trace.pairs_per_field[lo] + w * trace.pairs_per_field[hi],
+            (1 - w) * trace.interactions_per_field[lo] + w * trace.interactions_per_field[hi]};
 }
 
 std::vector<SlabLoad> recut(const std::vector<double> &fluid, const std::vector<double> &walls,

@@ -1,6 +1,7 @@
 // The runtime model's pure parts: fits against planted coefficients, the slab re-cut, Froude
 // rescaling, Hockney piece selection, and validation flagging a planted error.
 #include "sphperf/cli.hpp"
+#include "sphperf/model/jitter.hpp"
 #include "sphperf/model/runtime.hpp"
 
 #include <gtest/gtest.h>
@@ -179,6 +180,91 @@ TEST(Workload, DisorderFollowsSimulatedTimeAndAcousticTimeForAnotherSpacing) {
     }
 }
 
+TEST(Workload, PairDensityIsRecordedPerIntervalAndReadAtTheSourceTime) {
+    // Two ranks whose pairs per field particle differ; the trace keeps the sum over ranks.
+    SphRun r;
+    r.path = "r.json";
+    r.config.setup = "dambreak";
+    r.config.scale = 0.5;
+    r.config.cell_size = 0.04;
+    r.config.tank_length = 1.61;
+    r.initial_columns = {2, 0};
+    for (auto [t, per] : {std::pair{0.1, 22.0}, {0.2, 24.0}}) {
+        IntervalStats iv;
+        iv.time_s = t;
+        iv.columns = {1, 1};
+        RankStats a, b;
+        a.field_mean = 300;
+        a.pairs = 300 * (per - 1);
+        a.interactions = 2 * a.pairs;
+        b.field_mean = 100;
+        b.pairs = 100 * (per + 3);
+        b.interactions = 2 * b.pairs;
+        iv.ranks = {a, b};
+        r.intervals.push_back(iv);
+    }
+    const Trace t = Trace::from_json(trace_of(r).to_json(), "test");
+    ASSERT_EQ(t.pairs_per_field.size(), t.times_s.size());
+    EXPECT_NEAR(density_at(t, 0.0).pairs, 22.0, 1e-12); // t = 0 holds the first interval's
+    EXPECT_NEAR(density_at(t, 0.1).pairs, 22.0, 1e-12);
+    EXPECT_NEAR(density_at(t, 0.15).pairs, 23.0, 1e-12);
+    EXPECT_NEAR(density_at(t, 0.15).interactions, 46.0, 1e-12);
+    // A scale-2 target at 0.3 s is this half-scale trace at 0.15 s (Froude).
+    EXPECT_NEAR(density_at(t, source_time(0.3, 0.5, 2.0)).pairs, 23.0, 1e-12);
+    EXPECT_THROW((void)density_at(t, 0.25), UsageError);
+    nlohmann::json j = trace_of(r).to_json();
+    j["pairs_per_field"].erase(0);
+    EXPECT_THROW(Trace::from_json(j, "test"), UsageError);
+}
+
+TEST(Jitter, ExpectedMaxMatchesClosedForms) {
+    const double pi = std::acos(-1.0);
+    // Two and three iid normals: mu + sigma / sqrt(pi) and mu + 3 sigma / (2 sqrt(pi)).
+    const std::vector<double> m2{5, 5}, s2{0.5, 0.5}, m3{5, 5, 5}, s3{0.5, 0.5, 0.5};
+    EXPECT_NEAR(expected_max(m2, s2), 5 + 0.5 / std::sqrt(pi), 1e-9);
+    EXPECT_NEAR(expected_max(m3, s3), 5 + 1.5 * 0.5 / std::sqrt(pi), 1e-9);
+    // Clark (1961), two normals with different means and spreads.
+    const double mu1 = 3, mu2 = 2.5, sd1 = 0.4, sd2 = 0.9;
+    const double theta = std::hypot(sd1, sd2), a = (mu1 - mu2) / theta;
+    const double Phi = 0.5 * std::erfc(-a / std::sqrt(2.0));
+    const double phi = std::exp(-a * a / 2) / std::sqrt(2 * pi);
+    const std::vector<double> mc{mu1, mu2}, sc{sd1, sd2};
+    EXPECT_NEAR(expected_max(mc, sc), mu1 * Phi + mu2 * (1 - Phi) + theta * phi, 1e-9);
+    // A single variable is its mean; a constant far above the noise is the maximum.
+    const std::vector<double> one{7}, one_sd{2}, far{1, 100}, far_sd{0.1, 0};
+    EXPECT_DOUBLE_EQ(expected_max(one, one_sd), 7);
+    EXPECT_DOUBLE_EQ(expected_max(far, far_sd), 100);
+    const std::vector<double> bad_sd{-1};
+    EXPECT_THROW((void)expected_max(one, bad_sd), std::invalid_argument);
+    EXPECT_THROW((void)expected_max(std::vector<double>{}, std::vector<double>{}),
+                 std::invalid_argument);
+}
+
+TEST(Jitter, FitRecoversAPlantedSigmaFromSimulatedSteps) {
+    // Steps simulated with a planted relative jitter on unequal ranks; the measured wait is what
+    // the blocking exchange makes them pay. The fit must find the planted sigma again.
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> z;
+    for (double planted : {0.05, 0.15}) {
+        const std::vector<double> compute{0.010, 0.009, 0.0105}, comm{2e-4, 3e-4, 2e-4};
+        constexpr int steps = 40000;
+        double wait = 0;
+        for (int s = 0; s < steps; ++s) {
+            std::vector<double> t;
+            for (std::size_t r = 0; r < compute.size(); ++r)
+                t.push_back(compute[r] * (1 + planted * z(rng)) + comm[r]);
+            const double step = *std::max_element(t.begin(), t.end());
+            for (double v : t)
+                wait += step - v;
+        }
+        const std::vector<BusyInterval> busy{{steps, compute, comm}};
+        EXPECT_NEAR(fit_jitter(busy, wait), planted, 0.03 * planted) << planted;
+    }
+    // Less wait than the ranks' own imbalance gives: no jitter.
+    const std::vector<BusyInterval> uneven{{100, {0.01, 0.005}, {0, 0}}};
+    EXPECT_EQ(fit_jitter(uneven, 0.1), 0.0);
+}
+
 namespace {
 nlohmann::json two_piece_profile() {
     auto piece = [](double a, double b, double lo, double hi) {
@@ -234,7 +320,10 @@ nlohmann::json prediction(double wall_s) {
         {"wall_s", wall_s},
         {"memory", {{"peak_rss_bytes_max_rank", 30e6}, {"thesis_bound_bytes_max_rank", 200e6}}},
         {"totals", {{"compute_s", wall_s}, {"comm_s", 0}, {"wait_s", 0}, {"idle_s", 0}}},
-        {"per_rank", {{{"pairs_per_step", 1000}, {"exported_per_step", 0}}}},
+        {"per_rank",
+         {{{"pairs_per_step", 1000},
+           {"pairs_regression_per_step", 1000},
+           {"exported_per_step", 0}}}},
         {"intervals", {{{"ranks", {{{"comm_s", 0}, {"exported_regression", 0}}}}}}}};
     return {{"request",
              {{"setup", "dambreak"},

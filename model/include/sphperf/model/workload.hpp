@@ -16,6 +16,10 @@ struct Trace {
     double scale = 1, delta = 0.01, cell_size = 0, tank_length = 0;
     std::vector<double> times_s;              // t = 0 first
     std::vector<std::vector<double>> columns; // fluid particles per column at each time
+    // Pairs and interactions per field particle at each time, summed over ranks. The flow sets
+    // them (the collapsing column compresses and spreads): measured at scales 0.5, 1 and 2 they
+    // agree at equal Froude time, not at equal simulated time.
+    std::vector<double> pairs_per_field, interactions_per_field;
 
     double end_time() const { return times_s.empty() ? 0 : times_s.back(); }
     nlohmann::json to_json() const;
@@ -50,6 +54,12 @@ std::vector<double> rescale_columns(const std::vector<double> &source, double so
 // The trace's histogram at a source time, linear in time between records; throws UsageError
 // naming the simulated time needed when the trace ends before it.
 std::vector<double> histogram_at(const Trace &trace, double source_time);
+
+// Pairs and interactions per field particle at a source time, linear between records.
+struct WorkDensity {
+    double pairs = 0, interactions = 0;
+};
+WorkDensity density_at(const Trace &trace, double source_time);
 
 struct SlabLoad {
     int begin = 0, end = 0; // columns owned

@@ -1,0 +1,108 @@
+#include "sphperf/model/jitter.hpp"
+
+#include <gsl/gsl_cdf.h>
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_integration.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <vector>
+
+namespace sphperf::model {
+
+namespace {
+struct Normals {
+    std::vector<double> mean, sd;
+};
+// 1 - P(max <= x) over the random variables: the integrand of E[max] above its lower bound.
+double tail(double x, void *p) {
+    const auto &n = *static_cast<const Normals *>(p);
+    double all_below = 1;
+    for (std::size_t r = 0; r < n.mean.size(); ++r)
+        all_below *= gsl_cdf_ugaussian_P((x - n.mean[r]) / n.sd[r]);
+    return 1 - all_below;
+}
+} // namespace
+
+double expected_max(std::span<const double> mean, std::span<const double> sd) {
+    if (mean.empty() || mean.size() != sd.size())
+        throw std::invalid_argument("expected_max: needs one sd per mean, at least one");
+    // Lower bound: the largest constant, or where every variable is almost surely above.
+    constexpr double reach = 8; // standard deviations: P(Z > 8) ~ 6e-16
+    double constant = -std::numeric_limits<double>::infinity();
+    Normals random;
+    for (std::size_t r = 0; r < mean.size(); ++r) {
+        if (!std::isfinite(mean[r]) || !std::isfinite(sd[r]) || sd[r] < 0)
+            throw std::invalid_argument("expected_max: non-finite mean or negative sd");
+        if (sd[r] == 0)
+            constant = std::max(constant, mean[r]);
+        else {
+            random.mean.push_back(mean[r]);
+            random.sd.push_back(sd[r]);
+        }
+    }
+    if (random.mean.empty())
+        return constant;
+    double lo = constant, hi = constant;
+    for (std::size_t r = 0; r < random.mean.size(); ++r) {
+        lo = std::max(lo, random.mean[r] - reach * random.sd[r]);
+        hi = std::max(hi, random.mean[r] + reach * random.sd[r]);
+    }
+    // A variable almost surely below the bound never sets the maximum.
+    Normals live;
+    for (std::size_t r = 0; r < random.mean.size(); ++r)
+        if (random.mean[r] + reach * random.sd[r] > lo) {
+            live.mean.push_back(random.mean[r]);
+            live.sd.push_back(random.sd[r]);
+        }
+    if (live.mean.empty() || hi <= lo)
+        return lo;
+    if (live.mean.size() == 1 && lo <= live.mean[0] - reach * live.sd[0])
+        return live.mean[0]; // one variable and nothing above it: exactly its mean
+    gsl_set_error_handler_off();
+    constexpr std::size_t limit = 200;
+    std::unique_ptr<gsl_integration_workspace, decltype(&gsl_integration_workspace_free)> work(
+        gsl_integration_workspace_alloc(limit), gsl_integration_workspace_free);
+    gsl_function f{&tail, &live};
+    double area = 0, error = 0;
+    const int status = gsl_integration_qag(&f, lo, hi, 0, 1e-10, limit, GSL_INTEG_GAUSS21,
+                                           work.get(), &area, &error);
+    if (status != GSL_SUCCESS && error > 1e-6 * (hi - lo))
+        throw std::runtime_error(std::string("expected_max: integration failed: ") +
+                                 gsl_strerror(status));
+    return lo + area;
+}
+
+double modelled_wait(std::span<const BusyInterval> intervals, double sigma) {
+    double wait = 0;
+    std::vector<double> mean, sd;
+    for (const auto &iv : intervals) {
+        mean.clear();
+        sd.clear();
+        for (std::size_t k = 0; k < iv.compute_s.size(); ++k) {
+            mean.push_back(iv.compute_s[k] + iv.comm_s.at(k));
+            sd.push_back(sigma * iv.compute_s[k]);
+        }
+        const double step = expected_max(mean, sd);
+        for (double m : mean)
+            wait += iv.steps * (step - m);
+    }
+    return wait;
+}
+
+double fit_jitter(std::span<const BusyInterval> intervals, double measured_wait_s) {
+    // The modelled wait grows with sigma: bisection.
+    if (modelled_wait(intervals, 0) >= measured_wait_s)
+        return 0;
+    if (modelled_wait(intervals, jitter_sigma_max) <= measured_wait_s)
+        return jitter_sigma_max;
+    double lo = 0, hi = jitter_sigma_max;
+    while (hi - lo > 1e-7)
+        (modelled_wait(intervals, 0.5 * (lo + hi)) < measured_wait_s ? lo : hi) = 0.5 * (lo + hi);
+    return 0.5 * (lo + hi);
+}
+
+} // namespace sphperf::model
