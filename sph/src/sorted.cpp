@@ -117,7 +117,7 @@ template <class F> void for_each_owned(const CellSorted::View &v, F &&per_partic
 }
 } // namespace
 
-void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys) {
+void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double back) {
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
@@ -139,9 +139,13 @@ void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys) {
                 const double d2 = dx * dx + dy * dy;
                 const bool in = (d2 < r2max) & (j != i) & (fi + v.fluid[j] > 0);
                 const bool act = in & (d2 > 0);        // coincident images have no direction
-                const double r = std::sqrt(d2 + tiny); // finite terms, masked below
+                // Neighbours by the end of the step, the rate at separations `back` earlier
+                // (physics.hpp continuity_term).
+                const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
+                const double mx = dx - back * dvx, my = dy - back * dvy;
+                const double r = std::sqrt(mx * mx + my * my + tiny); // finite, masked below
                 const double f = k.derivative(r) / r;
-                const double term = v.mass[j] * f * ((vxi - v.vx[j]) * dx + (vyi - v.vy[j]) * dy);
+                const double term = v.mass[j] * f * (dvx * mx + dvy * my);
                 drho.v[l] += act ? term : 0.0;
                 inter[l] += in;
                 pair[l] += in & ((v.orig[j] >= v.owned) | (v.id[j] > idi));

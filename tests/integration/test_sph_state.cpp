@@ -83,3 +83,28 @@ TEST(SphState, HeavyMigrationEndsParticleByParticleAsOneRank) {
     EXPECT_GT(migrated, 10 * field) << "too little migration to test it";
     expect_same_particles(one, many);
 }
+
+// The integrator's order: the collapsing dam over 0.02 s (smooth: before the surge meets the far
+// wall), inviscid and without the Shepard filter (both are switches: a viscosity acting only on
+// approaching pairs, a filter every 30 steps), at dt, dt/2 and dt/4. The differences between
+// successive runs shrink by 2^p per halving for an integrator of order p. Measured: 4.06 (second
+// order); before the density rate was taken at the middle of the drift, 1.93.
+TEST(SphState, IntegratorIsSecondOrderInDt) {
+    const auto dir = scratch("state_order");
+    std::vector<State> states;
+    for (const auto &[dt, steps] : {std::pair{"1e-4", 200}, {"5e-5", 400}, {"2.5e-5", 800}}) {
+        const std::string n = std::to_string(steps);
+        states.push_back(particles_of(run_to_end(dir, std::string("dt") + n, 1, 1,
+                                                 std::string("--scale 0.5 --alpha 0 ") +
+                                                     "--shepard-every 0 --dt " + dt + " --steps " +
+                                                     n + " --interval " + n)));
+    }
+    const double coarse = diff(states[0], states[1]).max_position;
+    const double fine = diff(states[1], states[2]).max_position;
+    ASSERT_GT(fine, 0);
+    EXPECT_GT(coarse, 1e-8) << "the particles hardly moved: no test of the order";
+    const double ratio = coarse / fine;
+    std::printf("largest position difference: dt vs dt/2 %.3g m, dt/2 vs dt/4 %.3g m, ratio %.2f\n",
+                coarse, fine, ratio);
+    EXPECT_NEAR(ratio, 4.0, 0.5) << "expected a second-order integrator";
+}

@@ -24,7 +24,7 @@ struct InteractionCost {
 };
 inline constexpr InteractionCost interaction_costs[] = {
     {"neighbour search (2.86 candidates per interaction)", 14.3, 91.5},
-    {"continuity", 27.3, 44.0},
+    {"continuity (at the middle of the drift)", 35.3, 44.0},
     {"momentum", 43.8, 60.0},
     {"shepard filter (every 30 steps)", 0.8, 1.5},
 };

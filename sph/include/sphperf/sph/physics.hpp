@@ -23,9 +23,17 @@ struct Acceleration {
     double ax, ay;
 };
 
-inline double continuity_term(const PairInput &in, const QuinticKernel &k) {
-    const double f = k.derivative(in.r) / in.r;
-    return in.m_j * f * (in.dvx * in.dx + in.dvy * in.dy);
+// `back`: the pair's separation is taken that many seconds earlier along its relative velocity.
+// With back = dt / 2 it is the rate at the middle of the step the velocities drift over, which
+// makes the density update second order (at the end of the step, as before, it was first order:
+// measured 2.0x error per halving of dt).
+inline double continuity_term(const PairInput &in, const QuinticKernel &k, double back = 0) {
+    const double dx = in.dx - back * in.dvx, dy = in.dy - back * in.dvy;
+    const double r = std::sqrt(dx * dx + dy * dy);
+    if (r == 0) // dW/dr / r -> const and the separation -> 0: no contribution
+        return 0;
+    const double f = k.derivative(r) / r;
+    return in.m_j * f * (in.dvx * dx + in.dvy * dy);
 }
 
 inline Acceleration momentum_term(const PairInput &in, const QuinticKernel &k, double c0,
@@ -65,11 +73,13 @@ void for_each_neighbourhood(const Particles &p, const N &nb, Term &&term, Finish
     }
 }
 
-// Density rates of the owned particles (fluid and fixed wall particles).
-template <Neighbourhood N> void continuity(Particles &p, const N &nb, const Physics &phys) {
+// Density rates of the owned particles (fluid and fixed wall particles), at separations taken
+// `back` seconds earlier (see continuity_term).
+template <Neighbourhood N>
+void continuity(Particles &p, const N &nb, const Physics &phys, double back = 0) {
     const QuinticKernel k = phys.kernel();
     for_each_neighbourhood<double>(
-        p, nb, [&](double &sum, const PairInput &in) { sum += continuity_term(in, k); },
+        p, nb, [&](double &sum, const PairInput &in) { sum += continuity_term(in, k, back); },
         [&](std::size_t i, double sum) { p.drho[i] = sum; });
 }
 

@@ -129,7 +129,9 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
     if (advance_density_) {
         {
             ScopedPhase t(step_timers_, Phase::comp);
-            continuity(p_, nb_, phys_);
+            // The rate at the middle of the drift (separations half a step back along the
+            // half-step velocities): second order (tests/integration/test_sph_state.cpp).
+            continuity(p_, nb_, phys_, 0.5 * cfg_.dt);
             advance_density(p_, cfg_.dt);
             refresh_mirrors(p_, p_.owned(), mirror_sources_);
         }

@@ -103,7 +103,7 @@ inline void build_neighbours(CellSorted &grid, const Particles &, const CellWind
 }
 
 // The three drivers of the physics for Cell+Sorted (physics.hpp has them for stored lists).
-void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys);
+void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double back = 0);
 void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys);
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys);
 
