@@ -138,7 +138,7 @@ void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double 
                 const double dx = xi - v.x[j], dy = yi - v.y[j];
                 const double d2 = dx * dx + dy * dy;
                 const bool in = (d2 < r2max) & (j != i) & (fi + v.fluid[j] > 0);
-                const bool act = in & (d2 > 0);        // coincident images have no direction
+                const bool act = in & (d2 > 0); // coincident images have no direction
                 // Neighbours by the end of the step, the rate at separations `back` earlier
                 // (physics.hpp continuity_term).
                 const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
