@@ -4,6 +4,8 @@
 set -euo pipefail
 # --with-reference-tools also installs likwid and NetPIPE, which scripts/compare-reference.py runs
 # beside ours; they are comparison tools, not dependencies of sphperf.
+# --with-fuzz also installs clang and its OpenMP runtime for the libFuzzer harnesses
+# (scripts/fuzz.sh); CI does not run them.
 
 packages=(
     build-essential cmake pkg-config git
@@ -17,12 +19,16 @@ packages=(
     python3-matplotlib
 )
 
-if [ "${1:-}" = "--with-reference-tools" ]; then
-    packages+=(likwid netpipe-openmpi)
-elif [ -n "${1:-}" ]; then
-    echo "install-deps: unknown argument '$1' (expected --with-reference-tools or nothing)" >&2
-    exit 2
-fi
+for arg in "$@"; do
+    case "$arg" in
+        --with-reference-tools) packages+=(likwid netpipe-openmpi) ;;
+        --with-fuzz) packages+=(clang libomp-dev) ;;
+        *)
+            echo "install-deps: unknown argument '$arg' (expected --with-reference-tools, --with-fuzz or nothing)" >&2
+            exit 2
+            ;;
+    esac
+done
 
 missing=()
 for p in "${packages[@]}"; do
