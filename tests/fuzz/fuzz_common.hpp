@@ -23,14 +23,14 @@ template <class F> void refuses_or_reads(F &&read) {
 inline std::filesystem::path scratch_file(const std::string &name, const std::uint8_t *data,
                                           std::size_t size) {
     static const auto dir = [] {
-        const auto d = std::filesystem::temp_directory_path() /
-                       ("sphperf_fuzz_" + std::to_string(getpid()));
+        const auto d =
+            std::filesystem::temp_directory_path() / ("sphperf_fuzz_" + std::to_string(getpid()));
         std::filesystem::create_directories(d);
         return d;
     }();
     const auto path = dir / name;
-    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char *>(data),
-                                                static_cast<std::streamsize>(size));
+    std::ofstream(path, std::ios::binary)
+        .write(reinterpret_cast<const char *>(data), static_cast<std::streamsize>(size));
     return path;
 }
 
