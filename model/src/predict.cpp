@@ -5,9 +5,12 @@
 #include "sphperf/model/jitter.hpp"
 #include "sphperf/model/runtime.hpp"
 
+#include "sphperf/sph/balance.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <optional>
 
 namespace sphperf::model {
@@ -224,6 +227,37 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
 }
 } // namespace
 
+ColumnWeights balance_weights(const json &model, const std::string &setup, const std::string &grid,
+                              int threads) {
+    const Costs c = costs_of(model, setup, grid, threads);
+    if (!model.contains("traces") || !model["traces"].contains(setup))
+        throw UsageError("the model has no workload trace of setup '" + setup +
+                         "': calibrate with a " + setup + " run");
+    const Trace trace = Trace::from_json(model["traces"][setup], "model trace " + setup);
+    auto median = [](std::vector<double> v) {
+        if (v.empty())
+            return 0.0;
+        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+        return v[v.size() / 2];
+    };
+    const double per_fluid = median(trace.interactions_per_field);
+    const double disorder =
+        c.disorder ? median(c.disorder->per_interaction) : 0.0; // descents per interaction
+    ColumnWeights w;
+    w.fluid =
+        c.compute.coefficient("owned") + per_fluid * (c.compute.coefficient("interactions") +
+                                                      disorder * c.compute.coefficient("descents"));
+    w.walls = c.compute.coefficient("owned") + c.compute.coefficient("walls");
+    if (!(w.fluid > 0) || w.walls < 0)
+        throw UsageError("the model's compute cost of grid " + grid + " at " +
+                         std::to_string(threads) + " thread(s) gives a fluid particle " +
+                         std::to_string(w.fluid) + " s and a wall particle " +
+                         std::to_string(w.walls) + " s per step: expected > 0 and >= 0");
+    w.source = "model: compute fit of " + grid + " at " + std::to_string(threads) + " thread(s), " +
+               std::to_string(per_fluid) + " interactions per fluid particle";
+    return w;
+}
+
 json predict(const json &header, const json &model, const PredictRequest &req) {
     if (!model.contains("traces") || !model["traces"].contains(req.setup))
         throw UsageError("the model has no workload trace of setup '" + req.setup +
@@ -260,142 +294,201 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"trace_delta", trace.delta},
                            {"jitter_sigma", c.jitter}};
     out["fluid_particles"] = probe.fluid_particles;
+    out["request"]["decompositions"] = req.decompositions;
     json configs = json::array();
-    for (int P : req.ranks) {
-        const Target tgt =
-            make_target(req.setup, req.grid, req.scale, req.delta, req.dt, P, req.threads);
-        json intervals = json::array();
-        std::vector<RankStep> tot(static_cast<std::size_t>(P)); // sums over the run's steps
-        // Largest stored particle count and interaction count of each rank at any sample.
-        std::vector<double> peak_particles(static_cast<std::size_t>(P), 0.0),
-            peak_interactions(static_cast<std::size_t>(P), 0.0);
-        double wall = 0, idle_onset_step = -1;
-        for (std::int64_t s0 = 0; s0 < steps; s0 += req.interval) {
-            const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
-            const double n = static_cast<double>(s1 - s0);
-            std::vector<RankStep> mean(static_cast<std::size_t>(P));
-            double step_mean = 0;
-            for (int k = 0; k < samples_per_interval; ++k) {
-                const double t =
-                    req.dt * (static_cast<double>(s0) + (k + 0.5) * n / samples_per_interval);
-                const double ts = source_time(t, trace.scale, req.scale);
-                const auto src = histogram_at(trace, ts);
+    for (const std::string &dec : req.decompositions)
+        for (int P : req.ranks) {
+            const Target tgt =
+                make_target(req.setup, req.grid, req.scale, req.delta, req.dt, P, req.threads);
+            // The slabs: equal ones, or balanced ones re-cut by the app's rule (sph/balance.hpp)
+            // from the workload at each re-cut step, sph's own schedule: step 0, then every N
+            // steps.
+            const bool balanced = dec == "balanced";
+            const int every = req.rebalance_every > 0 ? req.rebalance_every : req.interval;
+            std::vector<int> cuts = sph::equal_cuts(P, tgt.columns);
+            std::int64_t next_cut = 0;
+            json rebalances = json::array();
+            double rebalance_total = 0;
+            auto recut_at = [&](std::int64_t step) {
+                const double t = static_cast<double>(step) * req.dt;
                 const auto cols =
-                    rescale_columns(src, trace.cell_size, trace.tank_length, tgt.cell_size,
+                    rescale_columns(histogram_at(trace, source_time(t, trace.scale, req.scale)),
+                                    trace.cell_size, trace.tank_length, tgt.cell_size,
                                     tgt.tank_length, tgt.columns, tgt.fluid_particles);
-                double step_s = 0;
-                const auto ranks = predict_step(recut(cols, tgt.wall_columns, P),
-                                                density_at(trace, ts), c, req.threads, t, step_s);
-                step_mean += step_s / samples_per_interval;
-                for (std::size_t r = 0; r < ranks.size(); ++r) {
-                    auto &m = mean[r];
-                    const auto &v = ranks[r];
-                    peak_particles[r] = std::max(peak_particles[r], v.field + v.walls + v.ghost);
-                    peak_interactions[r] = std::max(peak_interactions[r], v.interactions);
-                    for (auto [dst, src_v] : {std::pair{&m.field, v.field},
-                                              {&m.walls, v.walls},
-                                              {&m.ghost, v.ghost},
-                                              {&m.exported, v.exported},
-                                              {&m.exported_regression, v.exported_regression},
-                                              {&m.pairs, v.pairs},
-                                              {&m.pairs_regression, v.pairs_regression},
-                                              {&m.interactions, v.interactions},
-                                              {&m.compute_s, v.compute_s},
-                                              {&m.comm_s, v.comm_s},
-                                              {&m.wait_s, v.wait_s},
-                                              {&m.idle_s, v.idle_s}})
-                        *dst += src_v / samples_per_interval;
+                std::vector<double> cost(cols.size()), count(cols.size());
+                for (std::size_t k = 0; k < cols.size(); ++k) {
+                    cost[k] = req.weights.fluid * cols[k] + req.weights.walls * tgt.wall_columns[k];
+                    count[k] = cols[k] + tgt.wall_columns[k];
                 }
+                const auto next = sph::balanced_cuts(cost, P);
+                // Particles cross one boundary per hop: those between a cut's old and new column.
+                double crossings = 0, most = 0;
+                for (std::size_t b = 1; b + 1 < next.size(); ++b) {
+                    const auto lo = std::min(cuts[b], next[b]), hi = std::max(cuts[b], next[b]);
+                    const double n = std::accumulate(count.begin() + lo, count.begin() + hi, 0.0);
+                    crossings += n;
+                    most = std::max(most, n);
+                }
+                // A fresh run's first cut moves nothing (every rank builds the whole state).
+                const double secs =
+                    step == 0 || P == 1
+                        ? 0.0
+                        : c.comm.sendrecv_seconds(0, P * req.threads > c.cores ? -1 : req.threads,
+                                                  most * c.record_bytes, -1, -1);
+                rebalance_total += secs;
+                const double mean = std::accumulate(cost.begin(), cost.end(), 0.0) / P;
+                rebalances.push_back(
+                    {{"step", step},
+                     {"cuts", next},
+                     {"moved_particles", step == 0 ? 0.0 : crossings},
+                     {"rebalance_s", secs},
+                     {"imbalance_after", mean > 0 ? sph::max_slab_cost(cost, next) / mean : 1.0}});
+                cuts = next;
+            };
+            json intervals = json::array();
+            std::vector<RankStep> tot(static_cast<std::size_t>(P)); // sums over the run's steps
+            // Largest stored particle count and interaction count of each rank at any sample.
+            std::vector<double> peak_particles(static_cast<std::size_t>(P), 0.0),
+                peak_interactions(static_cast<std::size_t>(P), 0.0);
+            double wall = 0, idle_onset_step = -1;
+            for (std::int64_t s0 = 0; s0 < steps; s0 += req.interval) {
+                const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
+                const double n = static_cast<double>(s1 - s0);
+                std::vector<RankStep> mean(static_cast<std::size_t>(P));
+                double step_mean = 0;
+                for (int k = 0; k < samples_per_interval; ++k) {
+                    const double at_step =
+                        static_cast<double>(s0) + (k + 0.5) * n / samples_per_interval;
+                    while (balanced && static_cast<double>(next_cut) <= at_step) {
+                        recut_at(next_cut);
+                        next_cut = next_cut == 0 ? every : next_cut + every;
+                    }
+                    const double t = req.dt * at_step;
+                    const double ts = source_time(t, trace.scale, req.scale);
+                    const auto src = histogram_at(trace, ts);
+                    const auto cols =
+                        rescale_columns(src, trace.cell_size, trace.tank_length, tgt.cell_size,
+                                        tgt.tank_length, tgt.columns, tgt.fluid_particles);
+                    double step_s = 0;
+                    const auto ranks =
+                        predict_step(recut(cols, tgt.wall_columns, cuts), density_at(trace, ts), c,
+                                     req.threads, t, step_s);
+                    step_mean += step_s / samples_per_interval;
+                    for (std::size_t r = 0; r < ranks.size(); ++r) {
+                        auto &m = mean[r];
+                        const auto &v = ranks[r];
+                        peak_particles[r] =
+                            std::max(peak_particles[r], v.field + v.walls + v.ghost);
+                        peak_interactions[r] = std::max(peak_interactions[r], v.interactions);
+                        for (auto [dst, src_v] : {std::pair{&m.field, v.field},
+                                                  {&m.walls, v.walls},
+                                                  {&m.ghost, v.ghost},
+                                                  {&m.exported, v.exported},
+                                                  {&m.exported_regression, v.exported_regression},
+                                                  {&m.pairs, v.pairs},
+                                                  {&m.pairs_regression, v.pairs_regression},
+                                                  {&m.interactions, v.interactions},
+                                                  {&m.compute_s, v.compute_s},
+                                                  {&m.comm_s, v.comm_s},
+                                                  {&m.wait_s, v.wait_s},
+                                                  {&m.idle_s, v.idle_s}})
+                            *dst += src_v / samples_per_interval;
+                    }
+                }
+                json jr = json::array();
+                bool all_busy = true;
+                for (std::size_t r = 0; r < mean.size(); ++r) {
+                    const auto &m = mean[r];
+                    all_busy = all_busy && m.field >= 1;
+                    jr.push_back({{"field", m.field},
+                                  {"walls", m.walls},
+                                  {"ghost", m.ghost},
+                                  {"exported", m.exported},
+                                  {"exported_regression", m.exported_regression},
+                                  {"pairs", m.pairs},
+                                  {"pairs_regression", m.pairs_regression},
+                                  {"interactions", m.interactions},
+                                  {"compute_s", m.compute_s * n},
+                                  {"comm_s", m.comm_s * n},
+                                  {"wait_s", m.wait_s * n},
+                                  {"idle_s", m.idle_s * n}});
+                    RankStep &t = tot[r];
+                    t.compute_s += m.compute_s * n;
+                    t.comm_s += m.comm_s * n;
+                    t.wait_s += m.wait_s * n;
+                    t.idle_s += m.idle_s * n;
+                    t.pairs += m.pairs * n;
+                    t.pairs_regression += m.pairs_regression * n;
+                    t.exported += m.exported * n;
+                }
+                if (all_busy && idle_onset_step < 0)
+                    idle_onset_step = static_cast<double>(s0);
+                wall += step_mean * n;
+                intervals.push_back({{"step", s1},
+                                     {"time_s", static_cast<double>(s1) * req.dt},
+                                     {"wall_s", step_mean * n},
+                                     {"ranks", jr}});
             }
-            json jr = json::array();
-            bool all_busy = true;
-            for (std::size_t r = 0; r < mean.size(); ++r) {
-                const auto &m = mean[r];
-                all_busy = all_busy && m.field >= 1;
-                jr.push_back({{"field", m.field},
-                              {"walls", m.walls},
-                              {"ghost", m.ghost},
-                              {"exported", m.exported},
-                              {"exported_regression", m.exported_regression},
-                              {"pairs", m.pairs},
-                              {"pairs_regression", m.pairs_regression},
-                              {"interactions", m.interactions},
-                              {"compute_s", m.compute_s * n},
-                              {"comm_s", m.comm_s * n},
-                              {"wait_s", m.wait_s * n},
-                              {"idle_s", m.idle_s * n}});
-                RankStep &t = tot[r];
-                t.compute_s += m.compute_s * n;
-                t.comm_s += m.comm_s * n;
-                t.wait_s += m.wait_s * n;
-                t.idle_s += m.idle_s * n;
-                t.pairs += m.pairs * n;
-                t.pairs_regression += m.pairs_regression * n;
-                t.exported += m.exported * n;
+            json per_rank = json::array();
+            double compute = 0, comm = 0, wait = 0, idle = 0;
+            for (int r = 0; r < P; ++r) {
+                const RankStep &t = tot[static_cast<std::size_t>(r)];
+                const auto per_step = [&](double v) { return v / static_cast<double>(steps); };
+                per_rank.push_back({{"compute_s", t.compute_s},
+                                    {"comm_s", t.comm_s},
+                                    {"wait_s", t.wait_s},
+                                    {"idle_s", t.idle_s},
+                                    {"pairs_per_step", per_step(t.pairs)},
+                                    {"pairs_regression_per_step", per_step(t.pairs_regression)},
+                                    {"exported_per_step", per_step(t.exported)}});
+                compute += t.compute_s;
+                comm += t.comm_s;
+                wait += t.wait_s;
+                idle += t.idle_s;
             }
-            if (all_busy && idle_onset_step < 0)
-                idle_onset_step = static_cast<double>(s0);
-            wall += step_mean * n;
-            intervals.push_back({{"step", s1},
-                                 {"time_s", static_cast<double>(s1) * req.dt},
-                                 {"wall_s", step_mean * n},
-                                 {"ranks", jr}});
-        }
-        json per_rank = json::array();
-        double compute = 0, comm = 0, wait = 0, idle = 0;
-        for (int r = 0; r < P; ++r) {
-            const RankStep &t = tot[static_cast<std::size_t>(r)];
-            const auto per_step = [&](double v) { return v / static_cast<double>(steps); };
-            per_rank.push_back({{"compute_s", t.compute_s},
-                                {"comm_s", t.comm_s},
-                                {"wait_s", t.wait_s},
-                                {"idle_s", t.idle_s},
-                                {"pairs_per_step", per_step(t.pairs)},
-                                {"pairs_regression_per_step", per_step(t.pairs_regression)},
-                                {"exported_per_step", per_step(t.exported)}});
-            compute += t.compute_s;
-            comm += t.comm_s;
-            wait += t.wait_s;
-            idle += t.idle_s;
-        }
-        json memory = nullptr;
-        if (c.bytes_per_particle > 0) {
-            json rss = json::array();
-            double worst = 0, worst_thesis = 0, total = 0;
-            for (std::size_t r = 0; r < peak_particles.size(); ++r) {
-                const double n = peak_particles[r];
-                const double b = c.fixed_bytes + c.bytes_per_particle * n +
-                                 c.bytes_per_interaction * peak_interactions[r];
-                const double thesis =
-                    2 * n * c.bytes_per_particle + n * c.bytes_per_particle * thesis_k / 2;
-                rss.push_back(b);
-                total += b;
-                worst = std::max(worst, b);
-                worst_thesis = std::max(worst_thesis, thesis);
+            json memory = nullptr;
+            if (c.bytes_per_particle > 0) {
+                json rss = json::array();
+                double worst = 0, worst_thesis = 0, total = 0;
+                for (std::size_t r = 0; r < peak_particles.size(); ++r) {
+                    const double n = peak_particles[r];
+                    const double b = c.fixed_bytes + c.bytes_per_particle * n +
+                                     c.bytes_per_interaction * peak_interactions[r];
+                    const double thesis =
+                        2 * n * c.bytes_per_particle + n * c.bytes_per_particle * thesis_k / 2;
+                    rss.push_back(b);
+                    total += b;
+                    worst = std::max(worst, b);
+                    worst_thesis = std::max(worst_thesis, thesis);
+                }
+                memory = {{"peak_rss_bytes_per_rank", rss},
+                          {"peak_rss_bytes_max_rank", worst},
+                          {"thesis_bound_bytes_max_rank", worst_thesis},
+                          {"peak_rss_bytes_total", total}};
             }
-            memory = {{"peak_rss_bytes_per_rank", rss},
-                      {"peak_rss_bytes_max_rank", worst},
-                      {"thesis_bound_bytes_max_rank", worst_thesis},
-                      {"peak_rss_bytes_total", total}};
+            wall += rebalance_total;
+            configs.push_back(
+                {{"ranks", P},
+                 {"decomposition", dec},
+                 {"rebalance_s", rebalance_total},
+                 {"rebalances", balanced ? rebalances : json(nullptr)},
+                 {"memory", memory},
+                 {"threads", req.threads},
+                 {"oversubscribed", P * req.threads > c.cores},
+                 {"time_sharing_source",
+                  sharing_overhead(
+                      c, P * req.threads,
+                      c.exchange.empty() ? nullptr : &c.exchange.set_for(P, req.threads, c.cores),
+                      0)
+                      .second},
+                 {"wall_s", wall},
+                 {"totals",
+                  {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},
+                 {"first_step_all_ranks_busy",
+                  idle_onset_step >= 0 ? json(idle_onset_step) : json(nullptr)},
+                 {"per_rank", per_rank},
+                 {"intervals", intervals}});
         }
-        configs.push_back(
-            {{"ranks", P},
-             {"memory", memory},
-             {"threads", req.threads},
-             {"oversubscribed", P * req.threads > c.cores},
-             {"time_sharing_source",
-              sharing_overhead(
-                  c, P * req.threads,
-                  c.exchange.empty() ? nullptr : &c.exchange.set_for(P, req.threads, c.cores), 0)
-                  .second},
-             {"wall_s", wall},
-             {"totals",
-              {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},
-             {"first_step_all_ranks_busy",
-              idle_onset_step >= 0 ? json(idle_onset_step) : json(nullptr)},
-             {"per_rank", per_rank},
-             {"intervals", intervals}});
-    }
     // Speed-up and efficiency against the smallest rank count predicted.
     const double base =
         configs.front()["wall_s"].get<double>() * configs.front()["ranks"].get<double>();

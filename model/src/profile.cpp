@@ -17,11 +17,15 @@ nlohmann::json load_report(const std::filesystem::path &path, std::string_view b
                          "'");
     nlohmann::json j;
     try {
-        in >> j;
+        // parse(), not operator>>: the stream operator stops after the first value and would
+        // accept a report followed by garbage.
+        j = nlohmann::json::parse(in);
     } catch (const nlohmann::json::exception &e) {
         throw UsageError("'" + path.string() + "' is not valid JSON (" + e.what() + ")");
     }
-    if (!j.is_object() || j.value("benchmark", "") != benchmark)
+    const auto kind = j.is_object() ? j.find("benchmark") : j.end();
+    if (!j.is_object() || kind == j.end() || !kind->is_string() ||
+        kind->get_ref<const std::string &>() != benchmark)
         throw UsageError("'" + path.string() + "' is not a " + std::string(benchmark) +
                          " report (its \"benchmark\" field differs)");
     return j;

@@ -90,7 +90,7 @@ double RankStats::timer(const std::string &key) const {
 double RankStats::compute_s() const {
     double s = 0;
     for (const auto &[k, v] : timers)
-        if (k != "comm_s" && k != "wait_s" && k != "output_s")
+        if (k != "comm_s" && k != "wait_s" && k != "output_s" && k != "rebalance_s")
             s += v;
     return s;
 }
@@ -110,6 +110,12 @@ SphRun load_sph_run(const std::filesystem::path &path) {
         r.wall_columns = j.at("wall_columns").get<std::vector<double>>();
         r.peak_rss_bytes = j.at("peak_rss_bytes").get<std::vector<double>>();
         r.placement_pus = j.at("placement_pus").get<std::vector<int>>();
+        if (j.contains("decomposition")) {
+            const auto &d = j.at("decomposition");
+            r.config.decomposition = d.at("kind").get<std::string>();
+            for (const auto &b : d.at("rebalances"))
+                r.config.rebalance_s += figure(b, "rebalance_s");
+        }
     } catch (const json::exception &e) {
         throw UsageError("'" + path.string() + "': " + e.what());
     }

@@ -75,6 +75,16 @@ int run(int argc, char **argv) {
     pre->add_option("--interval", q.interval, "Steps per predicted interval (as sph --interval)")
         ->capture_default_str()
         ->check(CLI::Range(1, 1 << 30));
+    pre->add_option("--decomposition", q.decompositions,
+                    "Slabs, comma separated: equal (the thesis'), balanced (sph --decomposition "
+                    "balanced, particle-count weights) or both")
+        ->delimiter(',')
+        ->capture_default_str()
+        ->check(CLI::IsMember({"equal", "balanced"}));
+    pre->add_option("--rebalance-every", q.rebalance_every,
+                    "Steps between re-cuts of balanced slabs (as sph; 0: every interval)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1 << 30));
     pre->add_option("--cores", q.cores, "Cores of the node (default: the model's machine)")
         ->check(CLI::Range(1, 1 << 20));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();

@@ -34,7 +34,9 @@ const json *match(const std::vector<json> &predictions, const SphRun &m) {
             q.at("threads").get<int>() != m.config.threads)
             continue;
         for (const auto &c : p.at("configurations"))
-            if (c.at("ranks").get<int>() == m.config.ranks)
+            if (c.at("ranks").get<int>() == m.config.ranks &&
+                (c.contains("decomposition") ? c.at("decomposition").get<std::string>()
+                                             : std::string("equal")) == m.config.decomposition)
                 return &c;
     }
     return nullptr;
@@ -132,7 +134,10 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"delta", m.config.delta},
                  {"ranks", P},
                  {"threads", m.config.threads},
+                 {"decomposition", m.config.decomposition},
                  {"steps", m.config.steps},
+                 {"measured_rebalance_s", m.config.rebalance_s},
+                 {"predicted_rebalance_s", p->value("rebalance_s", 0.0)},
                  {"oversubscribed", p->at("oversubscribed")},
                  {"measured_wall_s", m.wall_s},
                  {"predicted_wall_s", p->at("wall_s")},
@@ -264,14 +269,14 @@ std::string prediction_table(const json &p) {
             q.at("setup").get<std::string>().c_str(), q.at("grid").get<std::string>().c_str(),
             d(q.at("scale")), d(q.at("delta")), q.at("steps").get<long long>(),
             q.at("threads").get<int>(), d(p.at("fluid_particles")));
-    s += fmt("  %5s %10s %8s %7s %11s %9s %9s %9s %s\n", "ranks", "wall_s", "speedup", "eff",
-             "compute_s", "comm_s", "wait_s", "idle_s", "all busy from step");
+    s += fmt("  %-8s %5s %10s %8s %7s %11s %9s %9s %9s %s\n", "slabs", "ranks", "wall_s", "speedup",
+             "eff", "compute_s", "comm_s", "wait_s", "idle_s", "all busy from step");
     for (const auto &c : p.at("configurations")) {
         const auto &t = c.at("totals");
-        s += fmt("  %5d %10.3f %8.2f %7.2f %11.3f %9.4f %9.3f %9.3f %s%s\n",
-                 c.at("ranks").get<int>(), d(c.at("wall_s")), d(c.at("speedup")),
-                 d(c.at("efficiency")), d(t.at("compute_s")), d(t.at("comm_s")), d(t.at("wait_s")),
-                 d(t.at("idle_s")),
+        s += fmt("  %-8s %5d %10.3f %8.2f %7.2f %11.3f %9.4f %9.3f %9.3f %s%s\n",
+                 c.value("decomposition", std::string("equal")).c_str(), c.at("ranks").get<int>(),
+                 d(c.at("wall_s")), d(c.at("speedup")), d(c.at("efficiency")), d(t.at("compute_s")),
+                 d(t.at("comm_s")), d(t.at("wait_s")), d(t.at("idle_s")),
                  c.at("first_step_all_ranks_busy").is_null()
                      ? "never"
                      : std::to_string(c.at("first_step_all_ranks_busy").get<long long>()).c_str(),

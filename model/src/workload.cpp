@@ -218,12 +218,20 @@ std::vector<SlabLoad> recut(const std::vector<double> &fluid, const std::vector<
     if (ranks > columns)
         throw UsageError(std::to_string(ranks) + " ranks exceed the " + std::to_string(columns) +
                          " cell columns of the tank: each rank needs at least one column");
+    return recut(fluid, walls, sph::equal_cuts(ranks, columns));
+}
+
+std::vector<SlabLoad> recut(const std::vector<double> &fluid, const std::vector<double> &walls,
+                            const std::vector<int> &cuts) {
+    const int columns = static_cast<int>(fluid.size());
+    const int ranks = static_cast<int>(cuts.size()) - 1;
+    sph::check_cuts(cuts, ranks, columns);
     std::vector<SlabLoad> out(static_cast<std::size_t>(ranks));
     auto at = [&](const std::vector<double> &v, int c) { return v[static_cast<std::size_t>(c)]; };
     for (int r = 0; r < ranks; ++r) {
         SlabLoad &s = out[static_cast<std::size_t>(r)];
-        s.begin = sph::Slab::first_column(r, ranks, columns);
-        s.end = sph::Slab::first_column(r + 1, ranks, columns);
+        s.begin = cuts[static_cast<std::size_t>(r)];
+        s.end = cuts[static_cast<std::size_t>(r) + 1];
         for (int c = s.begin; c < s.end; ++c) {
             s.field += at(fluid, c);
             s.walls += at(walls, c);

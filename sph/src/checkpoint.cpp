@@ -1,5 +1,7 @@
 #include "sphperf/sph/checkpoint.hpp"
 
+#include "sphperf/sph/balance.hpp"
+
 #include "sphperf/build_info.hpp"
 #include "sphperf/cli.hpp"
 
@@ -294,6 +296,22 @@ void from_json(const nlohmann::json &j, CheckpointFile &f) {
     j.at("bytes").get_to(f.bytes);
     j.at("fnv1a64").get_to(f.fnv1a64);
 }
+void to_json(nlohmann::json &j, const RebalanceRecord &r) {
+    j = {{"step", r.step},
+         {"cuts", r.cuts},
+         {"moved", r.moved},
+         {"seconds", r.seconds},
+         {"imbalance_before", r.imbalance_before},
+         {"imbalance_after", r.imbalance_after}};
+}
+void from_json(const nlohmann::json &j, RebalanceRecord &r) {
+    j.at("step").get_to(r.step);
+    j.at("cuts").get_to(r.cuts);
+    j.at("moved").get_to(r.moved);
+    j.at("seconds").get_to(r.seconds);
+    j.at("imbalance_before").get_to(r.imbalance_before);
+    j.at("imbalance_after").get_to(r.imbalance_after);
+}
 void to_json(nlohmann::json &j, const Manifest &m) {
     j = {{"schema", m.schema},
          {"kind", "sph-checkpoint"},
@@ -311,7 +329,9 @@ void to_json(nlohmann::json &j, const Manifest &m) {
            {"column_width", m.column_width},
            {"shepard_every", m.shepard_every},
            {"interval", m.interval}}},
-         {"files", m.files}};
+         {"files", m.files},
+         {"cuts", m.cuts},
+         {"rebalances", m.rebalances}};
 }
 void from_json(const nlohmann::json &j, Manifest &m) {
     j.at("schema").get_to(m.schema);
@@ -330,6 +350,10 @@ void from_json(const nlohmann::json &j, Manifest &m) {
     c.at("shepard_every").get_to(m.shepard_every);
     c.at("interval").get_to(m.interval);
     j.at("files").get_to(m.files);
+    if (j.contains("cuts"))
+        j.at("cuts").get_to(m.cuts);
+    if (j.contains("rebalances"))
+        j.at("rebalances").get_to(m.rebalances);
 }
 
 Manifest read_manifest(const std::filesystem::path &dir) {
@@ -346,6 +370,13 @@ Manifest read_manifest(const std::filesystem::path &dir) {
                              std::to_string(m.files.size()) +
                              " files do not fit (expected step >= 0 and one file per rank plus "
                              "the record)");
+        if (!m.cuts.empty()) {
+            try {
+                check_cuts(m.cuts, m.ranks, m.cuts.back());
+            } catch (const std::invalid_argument &e) {
+                throw UsageError(path.string() + ": " + e.what());
+            }
+        }
         return m;
     } catch (const nlohmann::json::exception &e) {
         throw UsageError(path.string() + ": not a checkpoint manifest (" + e.what() + ")");
@@ -410,6 +441,10 @@ Manifest verify_checkpoint(const std::filesystem::path &dir, const Config &cfg) 
                              text(given) + " in this run");
     same("shepard-every", std::to_string(m.shepard_every), std::to_string(want.shepard_every));
     same("interval", std::to_string(m.interval), std::to_string(want.interval));
+    if (!m.cuts.empty() && m.cuts.back() != make_geometry(cfg).cell_columns)
+        throw UsageError(where + ": slab cuts end at column " + std::to_string(m.cuts.back()) +
+                         ", this run's tank has " +
+                         std::to_string(make_geometry(cfg).cell_columns) + " columns");
     if (cfg.total_steps() <= m.step)
         throw UsageError(where + ": the checkpoint is at step " + std::to_string(m.step) +
                          ", this run ends at step " + std::to_string(cfg.total_steps()) +

@@ -34,6 +34,8 @@ constexpr std::pair<std::string_view, GridKind> grids[] = {
     {"list", GridKind::list}, {"table", GridKind::table}, {"sorted", GridKind::sorted}};
 constexpr std::pair<std::string_view, BoundaryKind> boundaries[] = {
     {"mirror", BoundaryKind::mirror}, {"fixed", BoundaryKind::fixed}};
+constexpr std::pair<std::string_view, Decomposition> decompositions[] = {
+    {"equal", Decomposition::equal}, {"balanced", Decomposition::balanced}};
 
 // Thesis dimensions at scale 1 (3.1).
 constexpr double tank_length_m = 3.22;
@@ -56,6 +58,12 @@ GridKind parse_grid(std::string_view s) {
 }
 BoundaryKind parse_boundary(std::string_view s) {
     return parse_enum("boundary", s, boundaries);
+}
+Decomposition parse_decomposition(std::string_view s) {
+    return parse_enum("decomposition", s, decompositions);
+}
+std::string_view to_string(Decomposition d) {
+    return name_of(d, decompositions);
 }
 FaultInjection parse_fault(std::string_view s) {
     const std::string text(s);
@@ -200,6 +208,13 @@ void validate(const Config &cfg, const Geometry &geo, int ranks) {
         throw UsageError("--checkpoint-every " + std::to_string(cfg.checkpoint_every) +
                          " must be a multiple of --interval " + std::to_string(cfg.interval) +
                          " (a checkpoint closes a report interval)");
+    if (cfg.rebalance_every < 0 ||
+        (cfg.decomposition == Decomposition::balanced && cfg.rebalance_every == 0))
+        throw UsageError("--rebalance-every " + std::to_string(cfg.rebalance_every) +
+                         " must be >= 1");
+    if (cfg.decomposition == Decomposition::equal && (cfg.rebalance_every != 0 || cfg.cost_model))
+        throw UsageError(std::string(cfg.cost_model ? "--model" : "--rebalance-every") +
+                         " needs --decomposition balanced");
     if (cfg.physics.shepard_every < 0)
         throw UsageError("--shepard-every " + std::to_string(cfg.physics.shepard_every) +
                          " must be >= 0 (0 disables the filter)");

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -19,14 +20,9 @@ static_assert(std::is_trivially_copyable_v<ParticleRecord>);
 
 int Slab::owner_of_column(int column) const {
     const int c = std::clamp(column, 0, columns - 1);
-    // Inverse of first_column: the last rank whose first column is <= c.
-    int r = static_cast<int>((static_cast<long long>(c) * ranks + ranks - 1) / columns);
-    r = std::clamp(r, 0, ranks - 1);
-    while (r > 0 && first_column(r, ranks, columns) > c)
-        --r;
-    while (r + 1 < ranks && first_column(r + 1, ranks, columns) <= c)
-        ++r;
-    return r;
+    // The last rank whose first column is <= c.
+    return static_cast<int>(std::upper_bound(cuts.begin() + 1, cuts.end() - 1, c) -
+                            (cuts.begin() + 1));
 }
 
 int Slab::owner_of(double x) const {
@@ -38,8 +34,9 @@ Domain::Domain(MPI_Comm comm, int columns, double cell_size) : comm_(comm) {
     MPI_Comm_size(comm, &slab_.ranks);
     slab_.columns = columns;
     slab_.cell_size = cell_size;
-    slab_.begin = Slab::first_column(slab_.rank, slab_.ranks, columns);
-    slab_.end = Slab::first_column(slab_.rank + 1, slab_.ranks, columns);
+    slab_.cuts = equal_cuts(slab_.ranks, columns);
+    slab_.begin = slab_.cuts[static_cast<std::size_t>(slab_.rank)];
+    slab_.end = slab_.cuts[static_cast<std::size_t>(slab_.rank) + 1];
     if (slab_.rank > 0)
         west_ = slab_.rank - 1;
     if (slab_.rank + 1 < slab_.ranks)
@@ -127,7 +124,8 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     return in;
 }
 
-ExchangeCounts Domain::migrate(Particles &p, const std::function<void(std::int64_t)> &forget) {
+ExchangeCounts Domain::migrate(Particles &p, const std::function<void(std::int64_t)> &forget,
+                               bool multi_hop) {
     if (slab_.ranks == 1)
         return {};
     std::optional<MaybePhase> pack(std::in_place, timers_, Phase::pack);
@@ -136,7 +134,7 @@ ExchangeCounts Domain::migrate(Particles &p, const std::function<void(std::int64
         const int owner = slab_.owner_of(p.x[i]);
         if (owner == slab_.rank)
             continue;
-        if (owner != slab_.rank - 1 && owner != slab_.rank + 1)
+        if (!multi_hop && owner != slab_.rank - 1 && owner != slab_.rank + 1)
             throw std::runtime_error("particle " + std::to_string(p.id[i]) + " jumped from rank " +
                                      std::to_string(slab_.rank) + " to rank " +
                                      std::to_string(owner) + " in one step; dt is too large");
@@ -157,6 +155,40 @@ ExchangeCounts Domain::migrate(Particles &p, const std::function<void(std::int64
             p.add_owned(r);
     c.received = in.from_west.size() + in.from_east.size();
     return c;
+}
+
+ExchangeCounts Domain::rebalance(Particles &p, std::vector<int> cuts,
+                                 const std::function<void(std::int64_t)> &forget) {
+    check_cuts(cuts, slab_.ranks, slab_.columns);
+    // Every rank must move to the same cuts: a disagreement would lose particles silently.
+    const long long mine = std::accumulate(cuts.begin(), cuts.end(), 0LL,
+                                           [](long long a, int c) { return a * 31 + c; });
+    long long lo = 0, hi = 0;
+    MPI_Allreduce(&mine, &lo, 1, MPI_LONG_LONG, MPI_MIN, comm_);
+    MPI_Allreduce(&mine, &hi, 1, MPI_LONG_LONG, MPI_MAX, comm_);
+    if (lo != hi)
+        throw std::logic_error("rebalance: the ranks computed different slab cuts");
+    slab_.cuts = std::move(cuts);
+    slab_.begin = slab_.cuts[static_cast<std::size_t>(slab_.rank)];
+    slab_.end = slab_.cuts[static_cast<std::size_t>(slab_.rank) + 1];
+    ExchangeCounts total;
+    // Each round moves every particle one slab toward its owner; at most ranks - 1 rounds.
+    for (int round = 0; round < slab_.ranks; ++round) {
+        const ExchangeCounts c = migrate(p, forget, true);
+        total.sent += c.sent;
+        total.received += c.received;
+        long long misplaced = 0;
+        for (std::size_t i = 0; i < p.owned(); ++i)
+            misplaced += slab_.owns(p.x[i]) ? 0 : 1;
+        if (sum(misplaced) == 0)
+            return total;
+    }
+    throw std::logic_error("rebalance: particles still misplaced after " +
+                           std::to_string(slab_.ranks) + " rounds");
+}
+
+void Domain::sum_all(std::vector<double> &v) const {
+    MPI_Allreduce(MPI_IN_PLACE, v.data(), static_cast<int>(v.size()), MPI_DOUBLE, MPI_SUM, comm_);
 }
 
 ExchangeCounts Domain::exchange_ghosts(Particles &p) {

@@ -3,6 +3,7 @@
 #include "sphperf/model/comm_model.hpp"
 #include "sphperf/model/memory.hpp"
 #include "sphperf/model/profile.hpp"
+#include "sphperf/model/runtime.hpp"
 #include "sphperf/report.hpp"
 #include "sphperf/sph/checkpoint.hpp"
 #include "sphperf/sph/config.hpp"
@@ -26,7 +27,7 @@ using namespace sphperf::sph;
 
 Config parse(int argc, char **argv) {
     Config cfg;
-    std::string setup = "dambreak", grid = "table", boundary = "fixed";
+    std::string setup = "dambreak", grid = "table", boundary = "fixed", decomposition = "equal";
     std::int64_t steps = 0;
     double end_time = 0;
     CLI::App app{"SPH proxy: 2D weakly compressible SPH (dam break, still tank, water column) "
@@ -77,12 +78,38 @@ Config parse(int argc, char **argv) {
                    "Continue from the latest checkpoint in this directory (same options; any "
                    "rank count)")
         ->check(CLI::ExistingDirectory);
+    app.add_option("--decomposition", decomposition,
+                   "Slabs: equal (the thesis' equal widths) or balanced (cut points moved so "
+                   "every rank's cost per step is as equal as whole columns allow)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"equal", "balanced"}));
+    auto *o_every = app.add_option("--rebalance-every", cfg.rebalance_every,
+                                   "Balanced slabs: steps between re-cuts (default: --interval)")
+                        ->check(CLI::Range(1, 1 << 30));
+    auto *o_model = app.add_option("--model", cfg.cost_model,
+                                   "Balanced slabs: cut by the calibrated model's predicted "
+                                   "seconds per column (model.json of sphmodel calibrate)")
+                        ->check(CLI::ExistingFile);
+    app.add_option("--wall-weight", cfg.balance.walls,
+                   "Balanced slabs: cost of a wall particle against a fluid particle's 1")
+        ->capture_default_str()
+        ->check(FiniteNonNegative)
+        ->excludes(o_model);
     app.add_flag("--quiet", cfg.quiet, "No progress line");
     parse_cli(app, argc, argv);
 
     cfg.setup = parse_setup(setup);
     cfg.grid = parse_grid(grid);
     cfg.boundary = parse_boundary(boundary);
+    cfg.decomposition = parse_decomposition(decomposition);
+    if (cfg.decomposition == Decomposition::balanced && !o_every->count())
+        cfg.rebalance_every = cfg.interval;
+    if (o_model->count() && cfg.decomposition == Decomposition::balanced) {
+        const auto w = model::balance_weights(
+            model::load_report(*cfg.cost_model, "sphmodel-calibration"), setup, grid,
+            cfg.threads > 0 ? cfg.threads : omp_get_max_threads());
+        cfg.balance = {w.fluid, w.walls, w.source};
+    }
     if (o_steps->count())
         cfg.steps = steps;
     if (o_end->count())

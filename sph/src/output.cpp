@@ -170,6 +170,24 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     j["machine"] = c.machine ? nlohmann::json(c.machine->string()) : nlohmann::json();
     j["initial_columns"] = run.initial_columns;
     j["wall_columns"] = run.wall_columns;
+    {
+        nlohmann::json rebalances = nlohmann::json::array();
+        for (const auto &r : run.rebalances)
+            rebalances.push_back({{"step", r.step},
+                                  {"cuts", r.cuts},
+                                  {"moved_particles", r.moved},
+                                  {"rebalance_s", r.seconds},
+                                  {"imbalance_before", r.imbalance_before},
+                                  {"imbalance_after", r.imbalance_after}});
+        j["decomposition"] = {{"kind", to_string(c.decomposition)},
+                              {"rebalance_every_steps", c.rebalance_every},
+                              {"weights",
+                               {{"fluid", c.balance.fluid},
+                                {"walls", c.balance.walls},
+                                {"source", c.balance.source}}},
+                              {"final_cuts", run.final_cuts},
+                              {"rebalances", rebalances}};
+    }
 
     nlohmann::json totals;
     for (std::size_t k = 0; k < phase_keys.size(); ++k) {

@@ -48,6 +48,17 @@ struct CalibrateOptions {
 nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
 
+// Seconds per step one fluid particle and one wall particle add to a rank: the calibrated
+// compute fit of this grid and thread count, with the trace's interactions (and, for the
+// stored-list grids, memory-order descents) per fluid particle at their median over the trace.
+// The weights of sph's cost-aware balanced cuts (sph --decomposition balanced --model).
+struct ColumnWeights {
+    double fluid = 1, walls = 1;
+    std::string source = "particle count";
+};
+ColumnWeights balance_weights(const nlohmann::json &model, const std::string &setup,
+                              const std::string &grid, int threads);
+
 struct PredictRequest {
     std::string setup = "dambreak", grid = "table";
     double scale = 1, delta = 0.01, dt = 1e-4;
@@ -57,6 +68,11 @@ struct PredictRequest {
     std::optional<double> end_time;
     int interval = 100;
     int cores = 0; // cores of the node (time-sharing above it); 0: from the model's machine
+    // Equal slabs (the thesis'), balanced ones re-cut every `rebalance_every` steps (0: every
+    // interval) by `weights`, or both (one configuration each per rank count).
+    std::vector<std::string> decompositions{"equal"};
+    int rebalance_every = 0;
+    ColumnWeights weights;
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);

@@ -34,6 +34,8 @@ struct RunConfig {
     double scale = 1, delta = 0.01, dt = 1e-4, cell_size = 0, tank_length = 0;
     std::int64_t steps = 0, fluid_particles = 0;
     int ranks = 1, threads = 1, interval = 1, cell_columns = 0;
+    std::string decomposition = "equal"; // reports before balanced slabs: equal
+    double rebalance_s = 0;              // balanced: the re-cuts' time, slowest rank, summed
 };
 
 struct SphRun {

@@ -72,6 +72,9 @@ struct SlabLoad {
 // Exactly the app's decomposition (sph::Slab::first_column) and its edge-column export rule.
 std::vector<SlabLoad> recut(const std::vector<double> &fluid_columns,
                             const std::vector<double> &wall_columns, int ranks);
+// The same for any valid cuts (sph/balance.hpp: the balanced decomposition).
+std::vector<SlabLoad> recut(const std::vector<double> &fluid_columns,
+                            const std::vector<double> &wall_columns, const std::vector<int> &cuts);
 
 // How far the particles' memory order has decayed from the initial lattice, as the stored-list
 // grids see it: neighbours found out of id order per interaction (the id sort's work, and the

@@ -62,7 +62,9 @@ struct Manifest {
     std::string setup, grid, boundary;
     double scale = 0, delta = 0, dt = 0, alpha = 0, column_width = 0;
     int shepard_every = 0, interval = 0;
-    std::vector<CheckpointFile> files; // rank_000.bin ... then record.bin
+    std::vector<CheckpointFile> files;       // rank_000.bin ... then record.bin
+    std::vector<int> cuts;                   // the slabs the rank files hold (empty: equal)
+    std::vector<RebalanceRecord> rebalances; // so far (balanced decomposition)
 };
 
 std::uint64_t fnv1a64(const std::string &bytes);

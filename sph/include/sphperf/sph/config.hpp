@@ -14,13 +14,16 @@ namespace sphperf::sph {
 enum class Setup { dambreak, still, column };
 enum class GridKind { list, table, sorted };
 enum class BoundaryKind { mirror, fixed };
+enum class Decomposition { equal, balanced };
 
 Setup parse_setup(std::string_view s);
 GridKind parse_grid(std::string_view s);
 BoundaryKind parse_boundary(std::string_view s);
+Decomposition parse_decomposition(std::string_view s);
 std::string_view to_string(Setup s);
 std::string_view to_string(GridKind g);
 std::string_view to_string(BoundaryKind b);
+std::string_view to_string(Decomposition d);
 
 // Weakly compressible SPH parameters. Values and reasons are in sph/README.md.
 struct Physics {
@@ -74,6 +77,15 @@ struct FaultInjection {
 // Parses "KIND:RANK:STEP"; throws UsageError naming the value.
 FaultInjection parse_fault(std::string_view s);
 
+// What a column costs per step in the balanced decomposition: weight times its fluid particles
+// plus weight times its wall particles. By default both count as particles do in the neighbour
+// search (one each); with --model the calibrated performance model's compute coefficients
+// (model/README.md) give seconds instead.
+struct BalanceWeights {
+    double fluid = 1.0, walls = 1.0;
+    std::string source = "particle count";
+};
+
 struct Config {
     Setup setup = Setup::dambreak;
     GridKind grid = GridKind::table;
@@ -94,6 +106,10 @@ struct Config {
     int checkpoint_every = 0;                            // steps; 0: the report interval
     std::optional<std::filesystem::path> restart_dir;    // continue from its latest checkpoint
     std::optional<FaultInjection> fault;
+    Decomposition decomposition = Decomposition::equal;
+    int rebalance_every = 0;                         // steps; 0: the report interval
+    std::optional<std::filesystem::path> cost_model; // model.json for cost-aware cuts
+    BalanceWeights balance;
     Physics physics;
 
     std::int64_t total_steps() const;

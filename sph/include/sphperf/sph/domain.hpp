@@ -3,6 +3,7 @@
 // vertical slabs of whole cell columns in rank order (thesis 3.1); each step, particles that
 // left a slab migrate and the particles of each edge column are sent as ghosts. One rank
 // exchanges nothing.
+#include "sphperf/sph/balance.hpp"
 #include "sphperf/sph/grid.hpp"
 #include "sphperf/sph/particles.hpp"
 #include "sphperf/sph/timers.hpp"
@@ -21,6 +22,7 @@ struct Slab {
     int columns = 1;        // cell columns over the whole tank
     int begin = 0, end = 1; // the columns this rank owns
     double cell_size = 1;
+    std::vector<int> cuts{0, 1}; // every rank's first column, then `columns` (balance.hpp)
 
     static int first_column(int rank, int ranks, int columns) {
         return static_cast<int>(static_cast<long long>(rank) * columns / ranks);
@@ -74,8 +76,17 @@ public:
     CellWindow window(int cell_rows) const;
 
     // Sends owned particles whose column now belongs to another rank; `forget` is told each id
-    // that leaves (the persistent grid drops it). Needs no transient particles present.
-    ExchangeCounts migrate(Particles &p, const std::function<void(std::int64_t)> &forget);
+    // that leaves (the persistent grid drops it). Needs no transient particles present. A
+    // particle more than one slab away is an error (dt too large), except within rebalance().
+    ExchangeCounts migrate(Particles &p, const std::function<void(std::int64_t)> &forget,
+                           bool multi_hop = false);
+    // Moves the cuts (the same on every rank; checked) and migrates every owned particle to its
+    // new owner, hop by hop, until none is left to move. Needs no transient particles present;
+    // the caller rebuilds its grid for the new window.
+    ExchangeCounts rebalance(Particles &p, std::vector<int> cuts,
+                             const std::function<void(std::int64_t)> &forget);
+    // Element-wise sum on every rank.
+    void sum_all(std::vector<double> &v) const;
     // Appends copies of the neighbours' edge-column particles (owned and mirrors).
     ExchangeCounts exchange_ghosts(Particles &p);
     // Sends the current density of the particles exported by the last exchange_ghosts, so the

@@ -52,6 +52,16 @@ struct PhysicsSeries {
     std::vector<double> time_s, front_x, mass, kinetic_energy;
 };
 
+// One re-cut of the balanced decomposition (the fresh run's first cut has step 0).
+struct RebalanceRecord {
+    std::int64_t step = 0;
+    std::vector<int> cuts;       // first column of every rank, then the column count
+    double moved = 0;            // particles that changed rank, all ranks
+    double seconds = 0;          // slowest rank's time for the re-cut and its migrations
+    double imbalance_before = 1; // largest slab cost / mean, under the old cuts
+    double imbalance_after = 1;  // and under the new ones
+};
+
 struct RunRecord {
     Config config;
     Geometry geometry;
@@ -68,11 +78,13 @@ struct RunRecord {
     std::vector<double> peak_rss_bytes;                                             // per rank
     std::vector<std::array<double, static_cast<std::size_t>(Phase::count)>> timers; // per rank
     std::vector<double> idle_s;                                                     // per rank
-    std::vector<double> initial_columns;   // fluid particles per cell column at t = 0
-    std::vector<double> wall_columns;      // fixed wall particles per cell column (static)
-    std::vector<int> placement_pus;        // first processing unit each rank is bound to, -1: none
-    std::int64_t restarted_from_step = -1; // the checkpoint's step, -1: not a restart
-    std::filesystem::path restarted_from;  // its directory
+    std::vector<double> initial_columns; // fluid particles per cell column at t = 0
+    std::vector<double> wall_columns;    // fixed wall particles per cell column (static)
+    std::vector<int> placement_pus;      // first processing unit each rank is bound to, -1: none
+    std::vector<RebalanceRecord> rebalances; // balanced decomposition only
+    std::vector<int> final_cuts;             // the slabs at the end of the run
+    std::int64_t restarted_from_step = -1;   // the checkpoint's step, -1: not a restart
+    std::filesystem::path restarted_from;    // its directory
 };
 
 } // namespace sphperf::sph

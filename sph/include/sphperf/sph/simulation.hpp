@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -47,7 +48,16 @@ private:
     void write_checkpoint(std::int64_t step);
     void build_transients();
     void compute_forces();
-    void step();
+    void step(std::int64_t s);
+    // Balanced decomposition: the cost of every column under the current weights (all ranks),
+    // and the re-cut to the cuts that balance it, with the migrations it takes.
+    std::vector<double> column_costs() const;
+    void rebalance(std::int64_t step, const std::vector<double> &cost);
+    void rebalance(std::int64_t step);
+    bool rebalance_due(std::int64_t s) const {
+        return cfg_.decomposition == Decomposition::balanced && s > 1 &&
+               (s - 1) % cfg_.rebalance_every == 0;
+    }
     void close_interval(std::int64_t step);
     void check_conservation(std::int64_t step) const;
     void check_state(std::int64_t step) const;
@@ -57,6 +67,10 @@ private:
     void write_snapshot(std::int64_t step);
     // Particles of kind k (fluid or wall) per global cell column, summed on rank 0.
     std::vector<double> column_histogram(bool fluid) const;
+    std::size_t column_of(double x) const {
+        return static_cast<std::size_t>(
+            std::clamp(static_cast<int>(std::floor(x / geo_.cell_size)), 0, geo_.cell_columns - 1));
+    }
 
     Config cfg_;
     Geometry geo_;
@@ -86,6 +100,14 @@ template <CellGrid Grid> void Simulation<Grid>::load_initial() {
     if (cfg_.boundary == BoundaryKind::fixed)
         walls = make_walls(geo_, phys_, static_cast<std::int64_t>(fluid.size()));
     first_mirror_id_ = static_cast<std::int64_t>(fluid.size() + walls.size());
+    if (cfg_.decomposition == Decomposition::balanced) {
+        // Every rank holds the whole initial state here, so the first cut needs no exchange.
+        std::vector<double> cost(static_cast<std::size_t>(geo_.cell_columns), 0.0);
+        for (const auto *set : {&fluid, &walls})
+            for (const auto &r : *set)
+                cost[column_of(r.x)] += set == &fluid ? cfg_.balance.fluid : cfg_.balance.walls;
+        rebalance(0, cost);
+    }
     p_.reserve(2 * (fluid.size() + walls.size()) / static_cast<std::size_t>(dom_.ranks()));
     for (const auto *set : {&fluid, &walls})
         for (const auto &r : *set)
@@ -142,7 +164,50 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
     momentum(p_, nb_, phys_);
 }
 
-template <CellGrid Grid> void Simulation<Grid>::step() {
+template <CellGrid Grid> std::vector<double> Simulation<Grid>::column_costs() const {
+    std::vector<double> cost(static_cast<std::size_t>(geo_.cell_columns), 0.0);
+    for (std::size_t i = 0; i < p_.owned(); ++i)
+        cost[column_of(p_.x[i])] += i < p_.fluid() ? cfg_.balance.fluid : cfg_.balance.walls;
+    dom_.sum_all(cost);
+    return cost;
+}
+
+template <CellGrid Grid> void Simulation<Grid>::rebalance(std::int64_t step) {
+    rebalance(step, column_costs());
+}
+
+// Moves the cuts and every particle to its new owner, then starts the grid afresh on the new
+// window (the sums run in id order, so the trajectory is unchanged). Its time and messages are
+// its own: the exchange phases and the per-step message tally (empty at the start of a step,
+// where a re-cut happens) do not see them. `cost` is every column's, the same on all ranks.
+template <CellGrid Grid>
+void Simulation<Grid>::rebalance(std::int64_t step, const std::vector<double> &cost) {
+    const double t0 = wall_seconds();
+    const auto cuts = balanced_cuts(cost, dom_.ranks());
+    const double mean = std::accumulate(cost.begin(), cost.end(), 0.0) / dom_.ranks();
+    auto imbalance = [&](const std::vector<int> &c) {
+        return mean > 0 ? max_slab_cost(cost, c) / mean : 1.0;
+    };
+    RebalanceRecord r;
+    r.step = step;
+    r.imbalance_before = imbalance(dom_.slab().cuts);
+    r.imbalance_after = imbalance(cuts);
+    dom_.attach_timers(nullptr);
+    const auto moved = static_cast<long long>(
+        dom_.rebalance(p_, cuts, [this](std::int64_t id) { grid_.forget(id); }).sent);
+    dom_.attach_timers(&step_timers_);
+    (void)dom_.take_tally();
+    grid_ = Grid{};
+    window_ = dom_.window(geo_.cell_rows);
+    const double seconds = wall_seconds() - t0;
+    step_timers_.add(Phase::rebalance, seconds);
+    r.cuts = dom_.slab().cuts;
+    r.moved = static_cast<double>(dom_.sum(moved));
+    r.seconds = dom_.max(seconds);
+    record_.rebalances.push_back(std::move(r));
+}
+
+template <CellGrid Grid> void Simulation<Grid>::step(std::int64_t s) {
     {
         ScopedPhase t(step_timers_, Phase::integrate);
         half_kick(p_, cfg_.dt);
@@ -157,6 +222,8 @@ template <CellGrid Grid> void Simulation<Grid>::step() {
         grid_.remove_transient(p_, window_);
         p_.drop_transient();
     }
+    if (rebalance_due(s))
+        rebalance(s);
     last_migrated_ = dom_.migrate(p_, [this](std::int64_t id) { grid_.forget(id); }).sent;
     build_transients();
     compute_forces();
@@ -340,7 +407,15 @@ template <CellGrid Grid> std::int64_t Simulation<Grid>::resume(const std::filesy
     record_.restarted_from_step = m.step;
     record_.restarted_from = dir;
     first_mirror_id_ = so_far.fluid_particles + so_far.wall_particles;
-    if (m.ranks == dom_.ranks()) {
+    record_.rebalances = m.rebalances;
+    const auto saved_cuts = m.cuts.empty() ? equal_cuts(m.ranks, geo_.cell_columns) : m.cuts;
+    const bool same_slabs =
+        m.ranks == dom_.ranks() && (cfg_.decomposition == Decomposition::balanced ||
+                                    saved_cuts == equal_cuts(m.ranks, geo_.cell_columns));
+    if (same_slabs) {
+        // The slabs as saved (nothing is held yet, so nothing moves), then each rank's state.
+        dom_.rebalance(p_, saved_cuts, [](std::int64_t) {});
+        window_ = dom_.window(geo_.cell_rows);
         const RankState s = read_rank(dom_.rank());
         s.restore(p_);
         grid_.restore_state(s.grid_state);
@@ -353,6 +428,14 @@ template <CellGrid Grid> std::int64_t Simulation<Grid>::resume(const std::filesy
         std::vector<double> ax, ay;
         for (int r = 0; r < m.ranks; ++r)
             read_rank(r).append_owned(all, ax, ay);
+        if (cfg_.decomposition == Decomposition::balanced) {
+            // Every rank holds every particle here: the cut needs no exchange.
+            std::vector<double> cost(static_cast<std::size_t>(geo_.cell_columns), 0.0);
+            for (const auto &r : all)
+                cost[column_of(r.x)] +=
+                    r.kind == Kind::fluid ? cfg_.balance.fluid : cfg_.balance.walls;
+            rebalance(m.step, cost);
+        }
         for (const Kind kind : {Kind::fluid, Kind::boundary})
             for (std::size_t i = 0; i < all.size(); ++i)
                 if (all[i].kind == kind && dom_.slab().owns(all[i].x)) {
@@ -401,6 +484,8 @@ template <CellGrid Grid> void Simulation<Grid>::write_checkpoint(std::int64_t st
     if (dom_.rank() != 0)
         return;
     Manifest m = manifest_for(cfg_, step, dom_.ranks());
+    m.cuts = dom_.slab().cuts;
+    m.rebalances = record_.rebalances;
     for (int r = 0; r < dom_.ranks(); ++r) {
         const double *v = &info[static_cast<std::size_t>(r) * 3];
         std::snprintf(name, sizeof name, "rank_%03d.bin", r);
@@ -448,7 +533,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
     const double start = wall_seconds();
     for (std::int64_t s = first + 1; s <= steps; ++s) {
         const double t0 = wall_seconds();
-        step();
+        step(s);
         if (cfg_.physics.shepard_every > 0 && s % cfg_.physics.shepard_every == 0) {
             ScopedPhase t(step_timers_, Phase::comp);
             shepard_filter(p_, nb_, phys_);
@@ -526,6 +611,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         record_.timers.push_back(a);
     }
     record_.idle_s = dom_.gather({total_idle_});
+    record_.final_cuts = dom_.slab().cuts;
     if (cfg_.vtk_dir && dom_.rank() == 0)
         snapshots_.write_index(*cfg_.vtk_dir);
     return record_;

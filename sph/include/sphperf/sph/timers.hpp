@@ -21,13 +21,14 @@ enum class Phase : std::size_t {
     boundary,
     integrate,
     output,
-    idsort, // Cell+List / Cell+Table: ordering each neighbour list by id (not grid cost)
+    idsort,    // Cell+List / Cell+Table: ordering each neighbour list by id (not grid cost)
+    rebalance, // balanced slabs: the re-cut and its migrations, all in one (no other phase)
     count
 };
 
 inline constexpr std::array<std::string_view, static_cast<std::size_t>(Phase::count)> phase_keys{
-    "pairs_s", "grid_s",     "comp_s",      "comm_s",   "wait_s",
-    "pack_s",  "boundary_s", "integrate_s", "output_s", "idsort_s"};
+    "pairs_s",    "grid_s",      "comp_s",   "comm_s",   "wait_s",     "pack_s",
+    "boundary_s", "integrate_s", "output_s", "idsort_s", "rebalance_s"};
 
 class PhaseTimers {
 public:
