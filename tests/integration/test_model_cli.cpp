@@ -123,6 +123,60 @@ TEST(ModelCli, CalibratePredictValidate) {
     EXPECT_TRUE(fs::exists(f.dir / "v0.json"));
 }
 
+// A balanced 3-rank run: the model cuts the trace's workload by the app's rule, so its first cut
+// is the run's own; the re-cut by the run's cuts gives every rank's field and wall particles;
+// and validate pairs the run with the balanced prediction, not the equal one.
+TEST(ModelCli, BalancedPredictionCutsAsTheAppDoes) {
+    const auto &f = fixture();
+    const auto bal = f.dir / "balanced3.json";
+    sphperf::testing::Run r = run(mpirun(3) + bin("sph") +
+                                  " --quiet --setup dambreak --scale 0.5 --steps 60 --interval 10 "
+                                  "--decomposition balanced --report " +
+                                  bal.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto j = load(bal);
+    const auto &rebalances = j["decomposition"]["rebalances"];
+    ASSERT_EQ(rebalances.size(), 6u);
+    const auto walls = j["wall_columns"].get<std::vector<double>>();
+    for (const auto &iv : j["intervals"]) {
+        std::vector<int> cuts;
+        for (const auto &b : rebalances)
+            if (b["step"].get<int>() <= iv["step"].get<int>())
+                cuts = b["cuts"].get<std::vector<int>>();
+        const auto slabs =
+            sphperf::model::recut(iv["columns"].get<std::vector<double>>(), walls, cuts);
+        for (int k = 0; k < 3; ++k) {
+            EXPECT_EQ(slabs[k].field, iv["ranks"][k]["field"].get<double>()) << "rank " << k;
+            EXPECT_EQ(slabs[k].walls, iv["ranks"][k]["virtual"].get<double>()) << "rank " << k;
+        }
+    }
+    const auto pred = f.dir / "pred_balanced.json";
+    r = run(bin("sphmodel") + " predict --model " + f.model.string() +
+            " --setup dambreak --scale 0.5 --ranks 1,3 --steps 60 --interval 10 "
+            "--decomposition equal,balanced --out " +
+            pred.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("balanced"), std::string::npos) << r.out;
+    const auto p = load(pred);
+    ASSERT_EQ(p["configurations"].size(), 4u);
+    const auto &eq3 = p["configurations"][1], &bal3 = p["configurations"][3];
+    EXPECT_EQ(eq3["decomposition"], "equal");
+    ASSERT_EQ(bal3["decomposition"], "balanced");
+    EXPECT_EQ(bal3["rebalances"][0]["cuts"], rebalances[0]["cuts"]);
+    // Equal slabs leave the far ranks dry at first; balanced ones keep all busy.
+    EXPECT_GT(eq3["totals"]["idle_s"].get<double>(), 0);
+    EXPECT_EQ(bal3["totals"]["idle_s"].get<double>(), 0);
+    const auto val = f.dir / "validation_balanced.json";
+    r = run(bin("sphmodel") + " validate --prediction " + pred.string() + " --measured " +
+            bal.string() + " " + f.run3.string() + " --out " + val.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto v = load(val);
+    ASSERT_EQ(v["configurations"].size(), 2u);
+    EXPECT_EQ(v["configurations"][0]["decomposition"], "balanced");
+    EXPECT_EQ(v["configurations"][0]["predicted_wall_s"], bal3["wall_s"]);
+    EXPECT_EQ(v["configurations"][1]["predicted_wall_s"], eq3["wall_s"]);
+}
+
 TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
     const auto j = load(fixture().run2);
     double predicted = 0, messages = 0;

@@ -38,6 +38,12 @@ void expect_same_record(const nlohmann::json &a, const nlohmann::json &b, bool s
     EXPECT_EQ(a["physics"]["time_s"], b["physics"]["time_s"]);
     if (!same_ranks)
         return; // other counters are per rank; sums over ranks reduce in another order
+    // Balanced slabs: the same re-cuts at the same steps, moving the same particles.
+    const auto &ra = a["decomposition"]["rebalances"], &rb = b["decomposition"]["rebalances"];
+    ASSERT_EQ(ra.size(), rb.size());
+    for (std::size_t k = 0; k < ra.size(); ++k)
+        for (const char *key : {"step", "cuts", "moved_particles", "imbalance_after"})
+            EXPECT_EQ(ra[k][key], rb[k][key]) << "rebalance " << k << " " << key;
     EXPECT_EQ(a["physics"]["kinetic_energy"], b["physics"]["kinetic_energy"]);
     for (std::size_t k = 0; k < a["intervals"].size(); ++k) {
         const auto &x = a["intervals"][k], &y = b["intervals"][k];
@@ -57,6 +63,7 @@ Run sph_run(int ranks, const std::string &args) {
 
 // Stopped at step 200 and continued to 400, at the same rank count (list and table grids keep
 // their stored-list order too) and, for the sorted grid, at another one.
+constexpr const char *BalancedTable = "table --decomposition balanced --rebalance-every 50";
 struct Resume {
     std::string name, grid;
     int ranks_before, ranks_after;
@@ -94,7 +101,11 @@ INSTANTIATE_TEST_SUITE_P(Sph, SphRestartTest,
                                            Resume{"table_2_to_3", "table", 2, 3},
                                            Resume{"list_3", "list", 3, 3},
                                            Resume{"sorted_3_to_2", "sorted", 3, 2},
-                                           Resume{"sorted_1_to_3", "sorted", 1, 3}),
+                                           Resume{"sorted_1_to_3", "sorted", 1, 3},
+                                           // Balanced slabs: the cuts come back with the
+                                           // particles (same ranks) or are cut afresh.
+                                           Resume{"balanced_3", BalancedTable, 3, 3},
+                                           Resume{"balanced_3_to_2", BalancedTable, 3, 2}),
                          [](const auto &info) { return info.param.name; });
 
 // One rank of three is killed (SIGKILL) mid-run: the job ends, the last complete checkpoint is

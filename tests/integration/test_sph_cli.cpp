@@ -242,6 +242,13 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         SphBadInput{"setup", "--setup tsunami --steps 1", "tsunami"},
         SphBadInput{"grid", "--grid octree --steps 1", "octree"},
+        SphBadInput{"decomposition", "--decomposition optimal --steps 1", "optimal"},
+        SphBadInput{"rebalance_without_balanced", "--rebalance-every 10 --steps 1",
+                    "--rebalance-every needs --decomposition balanced"},
+        SphBadInput{"rebalance_zero", "--decomposition balanced --rebalance-every 0 --steps 1",
+                    "--rebalance-every: Value 0"},
+        SphBadInput{"wall_weight_negative", "--decomposition balanced --wall-weight -1 --steps 1",
+                    "-1"},
         SphBadInput{"boundary", "--boundary sticky --steps 1", "sticky"},
         SphBadInput{"scale_zero", "--scale 0 --steps 1", "--scale: value 0"},
         SphBadInput{"scale_negative", "--scale -1 --steps 1", "--scale: value -1"},

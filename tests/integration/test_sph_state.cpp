@@ -84,6 +84,46 @@ TEST(SphState, HeavyMigrationEndsParticleByParticleAsOneRank) {
     expect_same_particles(one, many);
 }
 
+// Balanced slabs re-cut every 100 steps at 1-4 ranks: every particle ends where the equal-slab
+// 1-rank run puts it; at 4 ranks a cut moves mid-run (over 100 particles change rank at once,
+// several slabs away, beside the step's own migration), and every cut is valid.
+TEST(SphState, BalancedSlabsEndParticleByParticleAsOneRank) {
+    const auto dir = scratch("state_balanced");
+    const std::string args = "--scale 0.5 --steps 1200 --interval 400";
+    const auto one = run_to_end(dir, "equal_r1", 1, 1, args);
+    for (int ranks = 1; ranks <= 4; ++ranks) {
+        nlohmann::json report;
+        const auto ck =
+            run_to_end(dir, "balanced_r" + std::to_string(ranks), ranks, 1,
+                       args + " --decomposition balanced --rebalance-every 100", &report);
+        ASSERT_FALSE(report.is_null());
+        const auto &rebalances = report["decomposition"]["rebalances"];
+        EXPECT_EQ(rebalances.size(), 12u) << "step 0, then 101, 201, ... 1101";
+        double moved = 0;
+        std::vector<int> first;
+        bool cuts_moved = false;
+        for (const auto &r : rebalances) {
+            const auto cuts = r["cuts"].get<std::vector<int>>();
+            ASSERT_EQ(cuts.size(), static_cast<std::size_t>(ranks) + 1);
+            EXPECT_EQ(cuts.front(), 0);
+            EXPECT_EQ(cuts.back(), report["config"]["cell_columns"].get<int>());
+            for (std::size_t k = 0; k + 1 < cuts.size(); ++k)
+                EXPECT_LT(cuts[k], cuts[k + 1]) << "rank " << k << " owns no column";
+            if (first.empty())
+                first = cuts;
+            cuts_moved = cuts_moved || cuts != first;
+            moved += r["moved_particles"].get<double>();
+            EXPECT_LE(r["imbalance_after"].get<double>(),
+                      r["imbalance_before"].get<double>() + 1e-12);
+        }
+        if (ranks == 4) {
+            EXPECT_TRUE(cuts_moved) << "no cut moved: the re-cut path is not tested";
+            EXPECT_GT(moved, 100);
+        }
+        expect_same_particles(one, ck);
+    }
+}
+
 // The integrator's order: the collapsing dam over 0.02 s (smooth: before the surge meets the far
 // wall), inviscid and without the Shepard filter (both are switches: a viscosity acting only on
 // approaching pairs, a filter every 30 steps), at dt, dt/2 and dt/4. The differences between
