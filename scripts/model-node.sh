@@ -77,6 +77,11 @@ validate_run 2 val_dambreak_s1_list_r2 --setup dambreak --grid list --steps "$v_
     --interval "$interval"
 validate_run 3 val_dambreak_s1_list_r3 --setup dambreak --grid list --steps "$v_steps" \
     --interval "$interval"
+# Balanced slabs (sph --decomposition balanced, re-cut every interval).
+for r in 2 4; do
+    validate_run "$r" "val_dambreak_s1_table_balanced_r$r" --setup dambreak --grid table \
+        --steps "$v_steps" --interval "$interval" --decomposition balanced
+done
 echo "== calibration round b"
 calibrate_round b
 echo "== validation runs, second half"
@@ -108,6 +113,8 @@ predict() { # predict NAME ARGS...
         --out "$out/prediction_$name.json" "$@"
 }
 predict dambreak_s1_table --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 --steps "$v_steps"
+predict dambreak_s1_table_balanced --setup dambreak --grid table --scale 1 --ranks 2,4 \
+    --steps "$v_steps" --decomposition balanced
 predict dambreak_s1_list --setup dambreak --grid list --scale 1 --ranks 1,2,3 --steps "$v_steps"
 predict dambreak_s2_table --setup dambreak --grid table --scale 2 --ranks 2,4 --steps "$v2_steps"
 predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps "$vs_steps"

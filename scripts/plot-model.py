@@ -53,14 +53,16 @@ def scaling(predictions, validation, out):
     fig, axes = plt.subplots(1, 3, figsize=(16, 4))
     measured = {}
     for r in validation["configurations"]:
-        measured[(r["setup"], r["grid"], r["scale"], r["ranks"])] = r["measured_wall_s"]
+        measured[(r["setup"], r["grid"], r["scale"], r["ranks"],
+                  r.get("decomposition", "equal"))] = r["measured_wall_s"]
     for p in predictions:
         q = p["request"]
-        key = f"{q['setup']} s{q['scale']:g} {q['grid']}"
+        dec = p["configurations"][0].get("decomposition", "equal")
+        key = f"{q['setup']} s{q['scale']:g} {q['grid']}" + ("" if dec == "equal" else f" {dec}")
         ranks = [c["ranks"] for c in p["configurations"]]
         wall = [c["wall_s"] for c in p["configurations"]]
         line, = axes[0].plot(ranks, wall, "-", label=f"{key} predicted")
-        mr = [(c["ranks"], measured.get((q["setup"], q["grid"], q["scale"], c["ranks"])))
+        mr = [(c["ranks"], measured.get((q["setup"], q["grid"], q["scale"], c["ranks"], dec)))
               for c in p["configurations"]]
         mr = [(r, w) for r, w in mr if w is not None]
         if mr:
@@ -91,7 +93,8 @@ def scaling(predictions, validation, out):
 
 def workload(predictions, runs_dir, out):
     pred = next((p for p in predictions if p["request"]["setup"] == "dambreak"
-                 and p["request"]["scale"] == 1 and p["request"]["grid"] == "table"), None)
+                 and p["request"]["scale"] == 1 and p["request"]["grid"] == "table"
+                 and p["configurations"][0].get("decomposition", "equal") == "equal"), None)
     if pred is None:
         return
     cfg = max(pred["configurations"], key=lambda c: c["ranks"])
@@ -224,7 +227,8 @@ def markdown(model, validation, args, out):
         ph = r["phases"]
         pct = lambda v: f"{100 * v:+.1f} %"
         lines.append(
-            f"| {r['setup']} | {r['grid']} | {r['scale']:g} | {r['ranks']} x {r['threads']}"
+            f"| {r['setup']} | {r['grid']}{' balanced' if r.get('decomposition') == 'balanced' else ''} | "
+            f"{r['scale']:g} | {r['ranks']} x {r['threads']}"
             f"{' (shared)' if r['oversubscribed'] else ''} | {r['steps']} | {r['measured_wall_s']:.2f} | "
             f"{r['predicted_wall_s']:.2f} | **{pct(r['wall_error'])}** | {pct(ph['compute']['error'])} | "
             f"{pct(ph['comm']['error'])} | {pct(ph['wait']['error'])} | "

@@ -295,6 +295,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"jitter_sigma", c.jitter}};
     out["fluid_particles"] = probe.fluid_particles;
     out["request"]["decompositions"] = req.decompositions;
+    out["request"]["balance_weights"] = {
+        {"fluid", req.weights.fluid}, {"walls", req.weights.walls}, {"source", req.weights.source}};
     json configs = json::array();
     for (const std::string &dec : req.decompositions)
         for (int P : req.ranks) {

@@ -19,6 +19,7 @@ struct Options {
     std::vector<std::filesystem::path> runs, predictions, measured;
     bool allow_other_host = false;
     PredictRequest predict;
+    std::string balance_weights = "count";
     std::int64_t steps = 0;
     double end_time = 0, max_error = 0;
 };
@@ -81,6 +82,11 @@ int run(int argc, char **argv) {
         ->delimiter(',')
         ->capture_default_str()
         ->check(CLI::IsMember({"equal", "balanced"}));
+    pre->add_option("--balance-weights", o.balance_weights,
+                    "Balanced slabs weighted as sph cuts them: count (its default) or model "
+                    "(sph --model: this model's seconds per fluid and wall particle)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"count", "model"}));
     pre->add_option("--rebalance-every", q.rebalance_every,
                     "Steps between re-cuts of balanced slabs (as sph; 0: every interval)")
         ->capture_default_str()
@@ -121,6 +127,8 @@ int run(int argc, char **argv) {
         else
             q.end_time = o.end_time;
         const auto model = load_report(o.model, "sphmodel-calibration");
+        if (o.balance_weights == "model")
+            q.weights = balance_weights(model, q.setup, q.grid, q.threads);
         const auto prediction = predict(report_header("sphmodel-prediction", topo), model, q);
         std::cout << prediction_table(prediction);
         sink.write(prediction);

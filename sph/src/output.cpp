@@ -219,7 +219,8 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"message_bytes", r.message_bytes},
                               {"comm_predict_s", r.comm_predict_s},
                               {"comm_hockney_s", r.comm_hockney_s},
-                              {"descents", r.descents}};
+                              {"descents", r.descents},
+                              {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)
                 jr["timers"][phase_keys[k]] = r.timers[k];
             jiv["ranks"].push_back(jr);

@@ -177,6 +177,38 @@ TEST(ModelCli, BalancedPredictionCutsAsTheAppDoes) {
     EXPECT_EQ(v["configurations"][1]["predicted_wall_s"], eq3["wall_s"]);
 }
 
+// Cost-aware cuts: sph --model weighs fluid and wall particles by the calibrated compute fit,
+// and sphmodel predict --balance-weights model cuts the same way: the same first cut.
+TEST(ModelCli, CostAwareCutsUseTheModelsWeights) {
+    const auto &f = fixture();
+    const auto rep = f.dir / "cost_aware2.json";
+    sphperf::testing::Run r = run(mpirun(2) + bin("sph") +
+                                  " --quiet --setup dambreak --scale 0.5 --steps 20 --interval 10 "
+                                  "--decomposition balanced --model " +
+                                  f.model.string() + " --report " + rep.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto j = load(rep);
+    const auto &w = j["decomposition"]["weights"];
+    EXPECT_EQ(w["source"].get<std::string>().rfind("model:", 0), 0u) << w;
+    EXPECT_GT(w["fluid"].get<double>(), 0);
+    EXPECT_GE(w["walls"].get<double>(), 0);
+    EXPECT_NE(w["fluid"].get<double>(), 1.0) << "still the particle-count weights";
+    const auto pred = f.dir / "pred_cost_aware.json";
+    r = run(bin("sphmodel") + " predict --model " + f.model.string() +
+            " --setup dambreak --scale 0.5 --ranks 2 --steps 20 --interval 10 "
+            "--decomposition balanced --balance-weights model --out " +
+            pred.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto p = load(pred);
+    EXPECT_EQ(p["request"]["balance_weights"]["fluid"], w["fluid"]);
+    EXPECT_EQ(p["configurations"][0]["rebalances"][0]["cuts"],
+              j["decomposition"]["rebalances"][0]["cuts"]);
+    // --model with equal slabs is refused: it would be silently ignored.
+    r = run(mpirun(1) + bin("sph") + " --steps 1 --model " + f.model.string());
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find("--model needs --decomposition balanced"), std::string::npos) << r.err;
+}
+
 TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
     const auto j = load(fixture().run2);
     double predicted = 0, messages = 0;

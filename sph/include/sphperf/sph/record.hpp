@@ -31,9 +31,10 @@ struct RankInterval {
     double comm_hockney_s = 0; // ... by ping-pong Hockney alone (thesis T_COMM_PREDICT)
     double descents = 0;       // neighbours found right after one of larger id (id sort work):
                                // grows as the particles' memory order decays; 0 for sorted
+    double rss_bytes = 0;      // resident set size at the interval's end (soak: stays flat)
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
 
-    static constexpr std::size_t fields = 18 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 19 + static_cast<std::size_t>(Phase::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

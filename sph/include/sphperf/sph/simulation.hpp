@@ -344,8 +344,20 @@ template <CellGrid Grid> std::vector<double> Simulation<Grid>::column_histogram(
     return columns;
 }
 
+// This process's resident set now (/proc/self/statm, second field, in pages); 0 if unreadable.
+inline double resident_bytes() {
+    std::FILE *f = std::fopen("/proc/self/statm", "r");
+    if (!f)
+        return 0;
+    long long size = 0, resident = 0;
+    const int n = std::fscanf(f, "%lld %lld", &size, &resident);
+    std::fclose(f);
+    return n == 2 ? static_cast<double>(resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) : 0;
+}
+
 template <CellGrid Grid> void Simulation<Grid>::close_interval(std::int64_t step) {
     acc_.field = static_cast<double>(p_.fluid());
+    acc_.rss_bytes = resident_bytes();
     for (std::size_t i = 0; i < p_.fluid(); ++i)
         if (p_.x[i] < 0 || p_.x[i] > geo_.tank_length || p_.y[i] < 0)
             acc_.escaped += 1;
