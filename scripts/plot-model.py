@@ -157,7 +157,8 @@ def comm_error(validation, out):
         s = r["comm_series"]
         if r["ranks"] < 2 or not s:
             continue
-        name = f"{r['setup']} s{r['scale']:g} {r['grid']} {r['ranks']}r"
+        name = (f"{r['setup']} s{r['scale']:g} {r['grid']}"
+                + (" balanced" if r.get("decomposition") == "balanced" else "") + f" {r['ranks']}r")
         line, = ax.plot([e["time_s"] for e in s], [100 * e["model_error"] for e in s], "-", label=f"{name} model")
         if "inline_error" in s[0]:
             ax.plot([e["time_s"] for e in s], [100 * e.get("inline_error", 0) for e in s], ":",

@@ -286,7 +286,7 @@ std::string prediction_table(const json &p) {
 }
 
 std::string validation_table(const json &v) {
-    std::string s = fmt("  %-8s %-5s %5s %5s %3s %6s %10s %10s %8s %8s %8s %8s %8s %8s\n", "setup",
+    std::string s = fmt("  %-8s %-14s %5s %5s %3s %6s %10s %10s %8s %8s %8s %8s %8s %8s\n", "setup",
                         "grid", "scale", "ranks", "thr", "steps", "measured", "predicted", "wall",
                         "compute", "comm", "wait", "pairs", "peak RSS");
     for (const auto &r : v.at("configurations")) {
@@ -294,10 +294,15 @@ std::string validation_table(const json &v) {
         const std::string rss = r.contains("peak_rss_bytes")
                                     ? fmt("%+7.1f%%", 100 * d(r.at("peak_rss_bytes").at("error")))
                                     : std::string("       -");
-        s += fmt("  %-8s %-5s %5g %5d %3d %6lld %9.2fs %9.2fs %+7.1f%% %+7.1f%% %+7.1f%% %+7.1f%% "
+        // The grid, and the slabs when they are not the thesis' equal ones.
+        const std::string grid = r.at("grid").get<std::string>() +
+                                 (r.value("decomposition", std::string("equal")) == "equal"
+                                      ? ""
+                                      : " " + r.at("decomposition").get<std::string>());
+        s += fmt("  %-8s %-14s %5g %5d %3d %6lld %9.2fs %9.2fs %+7.1f%% %+7.1f%% %+7.1f%% %+7.1f%% "
                  "%+7.1f%% %s\n",
-                 r.at("setup").get<std::string>().c_str(), r.at("grid").get<std::string>().c_str(),
-                 d(r.at("scale")), r.at("ranks").get<int>(), r.at("threads").get<int>(),
+                 r.at("setup").get<std::string>().c_str(), grid.c_str(), d(r.at("scale")),
+                 r.at("ranks").get<int>(), r.at("threads").get<int>(),
                  r.at("steps").get<long long>(), d(r.at("measured_wall_s")),
                  d(r.at("predicted_wall_s")), 100 * d(r.at("wall_error")),
                  100 * d(ph.at("compute").at("error")), 100 * d(ph.at("comm").at("error")),
