@@ -19,6 +19,7 @@
 
 #include <cstdio>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -52,6 +53,9 @@ private:
     // Balanced decomposition: the cost of every column under the current weights (all ranks),
     // and the re-cut to the cuts that balance it, with the migrations it takes.
     std::vector<double> column_costs() const;
+    // The same from particle records every rank holds whole (no reduction).
+    std::vector<double>
+    column_costs(std::initializer_list<const std::vector<ParticleRecord> *> sets) const;
     void rebalance(std::int64_t step, const std::vector<double> &cost);
     void rebalance(std::int64_t step);
     bool rebalance_due(std::int64_t s) const {
@@ -102,11 +106,7 @@ template <CellGrid Grid> void Simulation<Grid>::load_initial() {
     first_mirror_id_ = static_cast<std::int64_t>(fluid.size() + walls.size());
     if (cfg_.decomposition == Decomposition::balanced) {
         // Every rank holds the whole initial state here, so the first cut needs no exchange.
-        std::vector<double> cost(static_cast<std::size_t>(geo_.cell_columns), 0.0);
-        for (const auto *set : {&fluid, &walls})
-            for (const auto &r : *set)
-                cost[column_of(r.x)] += set == &fluid ? cfg_.balance.fluid : cfg_.balance.walls;
-        rebalance(0, cost);
+        rebalance(0, column_costs({&fluid, &walls}));
     }
     p_.reserve(2 * (fluid.size() + walls.size()) / static_cast<std::size_t>(dom_.ranks()));
     for (const auto *set : {&fluid, &walls})
@@ -169,6 +169,16 @@ template <CellGrid Grid> std::vector<double> Simulation<Grid>::column_costs() co
     for (std::size_t i = 0; i < p_.owned(); ++i)
         cost[column_of(p_.x[i])] += i < p_.fluid() ? cfg_.balance.fluid : cfg_.balance.walls;
     dom_.sum_all(cost);
+    return cost;
+}
+
+template <CellGrid Grid>
+std::vector<double> Simulation<Grid>::column_costs(
+    std::initializer_list<const std::vector<ParticleRecord> *> sets) const {
+    std::vector<double> cost(static_cast<std::size_t>(geo_.cell_columns), 0.0);
+    for (const auto *set : sets)
+        for (const auto &r : *set)
+            cost[column_of(r.x)] += r.kind == Kind::fluid ? cfg_.balance.fluid : cfg_.balance.walls;
     return cost;
 }
 
@@ -442,11 +452,7 @@ template <CellGrid Grid> std::int64_t Simulation<Grid>::resume(const std::filesy
             read_rank(r).append_owned(all, ax, ay);
         if (cfg_.decomposition == Decomposition::balanced) {
             // Every rank holds every particle here: the cut needs no exchange.
-            std::vector<double> cost(static_cast<std::size_t>(geo_.cell_columns), 0.0);
-            for (const auto &r : all)
-                cost[column_of(r.x)] +=
-                    r.kind == Kind::fluid ? cfg_.balance.fluid : cfg_.balance.walls;
-            rebalance(m.step, cost);
+            rebalance(m.step, column_costs({&all}));
         }
         for (const Kind kind : {Kind::fluid, Kind::boundary})
             for (std::size_t i = 0; i < all.size(); ++i)
