@@ -33,9 +33,8 @@ void CellSorted::update(const Particles &p, const CellWindow &w) {
             for (auto j = it; j > b && p.id[*(j - 1)] > p.id[*j]; --j)
                 std::iter_swap(j - 1, j);
     }
-    for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_, &mass_, &fluid_})
+    for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
         v->resize(n);
-    id_.resize(n);
 #pragma omp parallel for schedule(static)
     for (std::size_t s = 0; s < n; ++s) {
         const std::uint32_t i = orig_[s];
@@ -45,7 +44,7 @@ void CellSorted::update(const Particles &p, const CellWindow &w) {
         vy_[s] = p.vy[i];
         mass_[s] = p.mass[i];
         fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
-        id_[s] = p.id[i];
+        remote_[s] = i < owned_ ? 0.0 : 1.0;
     }
     moves_ = n; // every particle is filed anew each step
     // Density and pressure are copied by refresh_density once they are final for the pass
@@ -56,15 +55,16 @@ void CellSorted::refresh_density(const Particles &p) {
     const std::size_t n = orig_.size();
 #pragma omp parallel for schedule(static)
     for (std::size_t s = 0; s < n; ++s) {
-        rho_[s] = p.rho[orig_[s]];
-        p_[s] = p.p[orig_[s]];
+        const double rho = p.rho[orig_[s]];
+        rho_[s] = rho;
+        p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
     }
 }
 
 CellSorted::View CellSorted::view() const {
-    return {x_.data(),     y_.data(),    vx_.data(),    vy_.data(), rho_.data(),
-            p_.data(),     mass_.data(), fluid_.data(), id_.data(), orig_.data(),
-            start_.data(), cols_,        rows_,         owned_};
+    return {x_.data(),           y_.data(),    vx_.data(),    vy_.data(),     rho_.data(),
+            p_over_rho2_.data(), mass_.data(), fluid_.data(), remote_.data(), orig_.data(),
+            start_.data(),       cols_,        rows_,         owned_};
 }
 
 namespace {
@@ -91,12 +91,14 @@ template <class Body>
 void for_each_candidate(const CellSorted::View &v, int col, int row, Body &&body) {
     const int r0 = std::max(row - 1, 0), r1 = std::min(row + 1, v.rows - 1);
     for (int c = std::max(col - 1, 0); c <= std::min(col + 1, v.cols - 1); ++c) {
-        std::uint32_t s = v.start[c * v.rows + r0];
-        const std::uint32_t e = v.start[c * v.rows + r1 + 1];
+        // 64-bit positions: a 32-bit s + l may wrap, and the compiler would then gather
+        // element by element instead of loading a vector.
+        std::size_t s = v.start[c * v.rows + r0];
+        const std::size_t e = v.start[c * v.rows + r1 + 1];
         for (; s + lanes <= e; s += lanes) {
 #pragma omp simd
             for (int l = 0; l < lanes; ++l)
-                body(s + static_cast<std::uint32_t>(l), l);
+                body(s + static_cast<std::size_t>(l), l);
         }
         for (int l = 0; s < e; ++s, ++l)
             body(s, l);
@@ -110,7 +112,7 @@ template <class F> void for_each_owned(const CellSorted::View &v, F &&per_partic
 #pragma omp parallel for schedule(dynamic, 8)
     for (int cell = 0; cell < cells; ++cell) {
         const int col = cell / v.rows, row = cell % v.rows;
-        for (std::uint32_t s = v.start[cell]; s < v.start[cell + 1]; ++s)
+        for (std::size_t s = v.start[cell]; s < v.start[cell + 1]; ++s)
             if (v.orig[s] < v.owned)
                 per_particle(s, col, row);
     }
@@ -121,43 +123,41 @@ void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double 
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
-    std::uint64_t pairs = 0, interactions = 0;
+    double interactions = 0, remote = 0; // exact: integers far below 2^53
     const int cells = v.cols * v.rows;
-#pragma omp parallel for schedule(dynamic, 8) reduction(+ : pairs, interactions)
+#pragma omp parallel for schedule(dynamic, 8) reduction(+ : interactions, remote)
     for (int cell = 0; cell < cells; ++cell) {
         const int col = cell / v.rows, row = cell % v.rows;
-        for (std::uint32_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
+        for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
             if (v.orig[i] >= v.owned)
                 continue;
             const double xi = v.x[i], yi = v.y[i], vxi = v.vx[i], vyi = v.vy[i];
             const double fi = v.fluid[i];
-            const std::int64_t idi = v.id[i];
-            LaneSum drho;
-            int inter[lanes] = {}, pair[lanes] = {};
-            for_each_candidate(v, col, row, [&](std::uint32_t j, int l) {
+            LaneSum drho, inter, rem;
+            for_each_candidate(v, col, row, [&](std::size_t j, int l) {
                 const double dx = xi - v.x[j], dy = yi - v.y[j];
                 const double d2 = dx * dx + dy * dy;
-                const bool in = (d2 < r2max) & (j != i) & (fi + v.fluid[j] > 0);
-                const bool act = in & (d2 > 0); // coincident images have no direction
+                const double in = (d2 < r2max) & (j != i) & (fi + v.fluid[j] > 0) ? 1.0 : 0.0;
+                const double act = d2 > 0 ? in : 0.0; // coincident images have no direction
                 // Neighbours by the end of the step, the rate at separations `back` earlier
                 // (physics.hpp continuity_term).
                 const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
                 const double mx = dx - back * dvx, my = dy - back * dvy;
                 const double r = std::sqrt(mx * mx + my * my + tiny); // finite, masked below
-                const double f = k.derivative(r) / r;
-                const double term = v.mass[j] * f * (dvx * mx + dvy * my);
-                drho.v[l] += act ? term : 0.0;
-                inter[l] += in;
-                pair[l] += in & ((v.orig[j] >= v.owned) | (v.id[j] > idi));
+                const double f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
+                drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
+                inter.v[l] += in;
+                rem.v[l] += in * v.remote[j];
             });
             p.drho[v.orig[i]] = drho.total();
-            for (int l = 0; l < lanes; ++l) {
-                interactions += static_cast<std::uint64_t>(inter[l]);
-                pairs += static_cast<std::uint64_t>(pair[l]);
-            }
+            interactions += inter.total();
+            remote += rem.total();
         }
     }
-    nb.counts = {pairs, interactions};
+    // Summed over owned i, the interactions count every pair of two owned particles twice and
+    // every pair with a ghost or mirror once: those are the pairs.
+    const auto all = static_cast<std::uint64_t>(interactions);
+    nb.counts = {(all + static_cast<std::uint64_t>(remote)) / 2, all};
 }
 
 void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
@@ -165,8 +165,8 @@ void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
-    const double h = k.h, eta2 = 0.01 * h * h, alpha_c0 = phys.alpha * phys.c0;
-    for_each_owned(v, [&](std::uint32_t i, int col, int row) {
+    const double h = k.h, eta2 = 0.01 * h * h, visc_coef = -2 * phys.alpha * phys.c0 * h;
+    for_each_owned(v, [&](std::size_t i, int col, int row) {
         const std::uint32_t oi = v.orig[i];
         if (v.fluid[i] == 0) { // wall particles do not move
             p.ax[oi] = 0;
@@ -174,24 +174,26 @@ void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
             return;
         }
         const double xi = v.x[i], yi = v.y[i], vxi = v.vx[i], vyi = v.vy[i];
-        const double rhoi = v.rho[i], pi_rho2 = v.p[i] / (rhoi * rhoi);
+        const double rhoi = v.rho[i], pri = v.p_over_rho2[i];
         LaneSum ax, ay;
-        for_each_candidate(v, col, row, [&](std::uint32_t j, int l) {
+        for_each_candidate(v, col, row, [&](std::size_t j, int l) {
             const double dx = xi - v.x[j], dy = yi - v.y[j];
             const double d2 = dx * dx + dy * dy;
-            const bool act = (d2 < r2max) & (j != i) & (d2 > 0); // i is fluid: every j interacts
-            const double r = std::sqrt(d2 + tiny);               // finite terms, masked below
-            const double f = k.derivative(r) / r;
+            // i is fluid: every j interacts. A multiplied mask, not a select: GCC turns the
+            // select into a conditional store here, which does not vectorise; every term is
+            // finite, so 0 x term adds nothing.
+            const double mask = (d2 < r2max) & (j != i) & (d2 > 0) ? 1.0 : 0.0;
+            const double r = std::sqrt(d2 + tiny);
             const double vdotr = (vxi - v.vx[j]) * dx + (vyi - v.vy[j]) * dy;
-            // Viscosity for approaching pairs only (vdotr < 0): clamping vdotr rather than
-            // branching keeps the loop branch-free; receding pairs get mu = 0.
-            const double mu = h * std::min(vdotr, 0.0) / (r * r + eta2);
-            const double rhoj = v.rho[j];
-            const double visc = -alpha_c0 * mu / (0.5 * (rhoi + rhoj));
-            const double coef = v.mass[j] * (pi_rho2 + v.p[j] / (rhoj * rhoj) + visc);
-            // A multiplied mask, not a select: GCC turns the select into a conditional store
-            // here, which does not vectorise. Every term is finite, so 0 x term adds nothing.
-            const double mask = act ? 1.0 : 0.0;
+            // One division for three quotients, 1/r, 1/(r^2 + eta^2) and 1/(rho_i + rho_j):
+            // divisions and the square root are what this loop waits on.
+            const double dv = (d2 + eta2) * (rhoi + v.rho[j]);
+            const double inv = 1.0 / (r * dv);
+            // Monaghan's viscosity for approaching pairs only (vdotr < 0): clamping vdotr
+            // rather than branching keeps the loop branch-free; receding pairs get 0.
+            const double visc = visc_coef * std::min(vdotr, 0.0) * (r * inv);
+            const double f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) * (dv * inv);
+            const double coef = v.mass[j] * (pri + v.p_over_rho2[j] + visc);
             ax.v[l] += mask * (-coef * f * dx);
             ay.v[l] += mask * (-coef * f * dy);
         });
@@ -207,12 +209,12 @@ void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {
     const double r2max = phys.cell_size() * phys.cell_size();
     const double w0 = k.value(0.0);
     std::vector<double> filtered(p.owned(), 0.0);
-    for_each_owned(v, [&](std::uint32_t i, int col, int row) {
+    for_each_owned(v, [&](std::size_t i, int col, int row) {
         if (v.fluid[i] == 0)
             return; // wall densities follow the continuity equation
         const double xi = v.x[i], yi = v.y[i];
         LaneSum num, den;
-        for_each_candidate(v, col, row, [&](std::uint32_t j, int l) {
+        for_each_candidate(v, col, row, [&](std::size_t j, int l) {
             const double dx = xi - v.x[j], dy = yi - v.y[j];
             const double d2 = dx * dx + dy * dy;
             const bool in = (d2 < r2max) & (j != i);

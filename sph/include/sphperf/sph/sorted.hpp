@@ -28,10 +28,10 @@ public:
 
     // The sorted copy: what the inner loops read, contiguous per cell.
     struct View {
-        const double *x, *y, *vx, *vy, *rho, *p, *mass, *fluid; // fluid: 1 or 0
-        const std::int64_t *id;
-        const std::uint32_t *orig;  // sorted position -> index in Particles
-        const std::uint32_t *start; // cell -> first sorted position; start[cells] = size
+        const double *x, *y, *vx, *vy, *rho, *p_over_rho2, *mass;
+        const double *fluid, *remote; // 1 or 0: a fluid particle; not owned by this rank
+        const std::uint32_t *orig;    // sorted position -> index in Particles
+        const std::uint32_t *start;   // cell -> first sorted position; start[cells] = size
         int cols, rows;
         std::size_t owned; // a sorted particle is owned when orig < owned
     };
@@ -49,7 +49,7 @@ public:
              s < start_[static_cast<std::size_t>(k) + 1]; ++s)
             f(orig_[s]);
     }
-    // Copies density and pressure, which the sort leaves out: they change between the sort and
+    // Copies density and P / rho^2, which the sort leaves out: they change between the sort and
     // the passes that read them (continuity, equation of state, Shepard).
     void refresh_density(const Particles &p);
     View view() const;
@@ -58,8 +58,7 @@ private:
     int sorted_cell(int window_cell) const {
         return (window_cell % cols_) * rows_ + window_cell / cols_;
     }
-    std::vector<double> x_, y_, vx_, vy_, rho_, p_, mass_, fluid_;
-    std::vector<std::int64_t> id_;
+    std::vector<double> x_, y_, vx_, vy_, rho_, p_over_rho2_, mass_, fluid_, remote_;
     std::vector<std::uint32_t> orig_, start_, key_, fill_;
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
@@ -72,28 +71,32 @@ struct SortedNeighbours {
     PairCounts counts;
 };
 
-// Branch-free quintic kernel: the same operations as QuinticKernel in the same order, the
-// absent pieces adding exact zeros; equal to rounding (tested; fused multiply-adds may differ).
+// Branch-free quintic kernel: the polynomial of QuinticKernel in q = r / h with the absent
+// pieces adding exact zeros, and q from one multiplication (no division): equal to rounding
+// (tested).
 struct BranchFreeKernel {
-    double h, inv_h, alpha_d;
+    double h, inv_h, alpha_d, alpha_d_over_h;
     explicit BranchFreeKernel(const QuinticKernel &k)
-        : h(k.h), inv_h(1.0 / k.h), alpha_d(k.alpha_d) {}
+        : h(k.h), inv_h(1.0 / k.h), alpha_d(k.alpha_d), alpha_d_over_h(k.alpha_d / k.h) {}
     static double pos(double v) { return std::max(v, 0.0); }
-    double value(double r) const {
-        const double q = r / h, a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
+    // W / alpha_d and its slope d(W / alpha_d)/dq.
+    static double shape(double q) {
+        const double a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
         double w = a * a * a * a * a;
         w -= 6 * (b * b * b * b * b);
         w += 15 * (c * c * c * c * c);
-        return alpha_d * w;
+        return w;
     }
-    double derivative(double r) const {
-        const double q = r / h, a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
+    static double slope(double q) {
+        const double a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
         double d = 0;
         d -= 5 * (a * a * a * a);
         d += 30 * (b * b * b * b);
         d -= 75 * (c * c * c * c);
-        return alpha_d * d / h;
+        return d;
     }
+    double value(double r) const { return alpha_d * shape(r * inv_h); }
+    double derivative(double r) const { return alpha_d_over_h * slope(r * inv_h); }
 };
 
 // The grid is the neighbourhood: building it is the sort already done by update().
