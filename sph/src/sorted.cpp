@@ -8,14 +8,22 @@ namespace sphperf::sph {
 void CellSorted::update(const Particles &p, const CellWindow &w) {
     const std::size_t n = p.size();
     cols_ = w.cols();
-    rows_ = w.rows();
+    rows_ = w.rows() * rows_per_cell;
+    const double row_height = w.cell_size / rows_per_cell;
+    const int first_row = w.row_begin * rows_per_cell;
+    // Positions outside the window are filed in its edge rows, as CellWindow files them.
+    auto row_of = [&](double y) {
+        return std::clamp(static_cast<int>(std::floor(y / row_height)), first_row,
+                          first_row + rows_ - 1) -
+               first_row;
+    };
     const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
     owned_ = p.owned();
     key_.resize(n);
     start_.assign(cells + 1, 0);
     for (std::size_t i = 0; i < n; ++i) {
         const auto k = static_cast<std::uint32_t>((w.column_of(p.x[i]) - w.col_begin) * rows_ +
-                                                  (w.row_of(p.y[i]) - w.row_begin));
+                                                  row_of(p.y[i]));
         key_[i] = k;
         ++start_[k + 1];
     }
@@ -89,7 +97,8 @@ struct LaneSum {
 // columns west to east, each one contiguous range (cells are numbered column by column).
 template <class Body>
 void for_each_candidate(const CellSorted::View &v, int col, int row, Body &&body) {
-    const int r0 = std::max(row - 1, 0), r1 = std::min(row + 1, v.rows - 1);
+    constexpr int reach = CellSorted::rows_per_cell; // rows within 3h
+    const int r0 = std::max(row - reach, 0), r1 = std::min(row + reach, v.rows - 1);
     for (int c = std::max(col - 1, 0); c <= std::min(col + 1, v.cols - 1); ++c) {
         // 64-bit positions: a 32-bit s + l may wrap, and the compiler would then gather
         // element by element instead of loading a vector.
