@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 namespace sphperf::sph {
 
@@ -141,25 +142,39 @@ void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double 
             if (v.orig[i] >= v.owned)
                 continue;
             const double xi = v.x[i], yi = v.y[i], vxi = v.vx[i], vyi = v.vy[i];
-            const double fi = v.fluid[i];
             LaneSum drho, inter, rem;
-            for_each_candidate(v, col, row, [&](std::size_t j, int l) {
-                const double dx = xi - v.x[j], dy = yi - v.y[j];
-                const double d2 = dx * dx + dy * dy;
-                const double in = (d2 < r2max) & (j != i) & (fi + v.fluid[j] > 0) ? 1.0 : 0.0;
-                const double act = d2 > 0 ? in : 0.0; // coincident images have no direction
-                // Neighbours by the end of the step, the rate at separations `back` earlier
-                // (physics.hpp continuity_term).
-                const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
-                const double mx = dx - back * dvx, my = dy - back * dvy;
-                const double r = std::sqrt(mx * mx + my * my + tiny); // finite, masked below
-                const double f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
-                drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
-                inter.v[l] += in;
-                rem.v[l] += in * v.remote[j];
-            });
+            // A fluid particle interacts with every particle within 3h, itself included here
+            // (subtracted below: its own term is 0, its separation and velocity difference
+            // being 0); a wall particle with fluid particles only, so not with itself. Two
+            // loops, so that neither tests in every lane what is known per particle.
+            auto pass = [&](auto fluid_i) {
+                for_each_candidate(v, col, row, [&](std::size_t j, int l) {
+                    const double dx = xi - v.x[j], dy = yi - v.y[j];
+                    const double d2 = dx * dx + dy * dy;
+                    double in;
+                    if constexpr (fluid_i)
+                        in = d2 < r2max ? 1.0 : 0.0;
+                    else
+                        in = (d2 < r2max) & (v.fluid[j] > 0) ? 1.0 : 0.0;
+                    const double act = d2 > 0 ? in : 0.0; // coincident images have no direction
+                    // Neighbours by the end of the step, the rate at separations `back` earlier
+                    // (physics.hpp continuity_term).
+                    const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
+                    const double mx = dx - back * dvx, my = dy - back * dvy;
+                    const double r = std::sqrt(mx * mx + my * my + tiny); // finite, masked below
+                    const double f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
+                    drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
+                    inter.v[l] += in;
+                    rem.v[l] += in * v.remote[j];
+                });
+            };
+            const bool fluid_i = v.fluid[i] > 0;
+            if (fluid_i)
+                pass(std::true_type{});
+            else
+                pass(std::false_type{});
             p.drho[v.orig[i]] = drho.total();
-            interactions += inter.total();
+            interactions += inter.total() - (fluid_i ? 1.0 : 0.0);
             remote += rem.total();
         }
     }
@@ -191,7 +206,7 @@ void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
             // i is fluid: every j interacts. A multiplied mask, not a select: GCC turns the
             // select into a conditional store here, which does not vectorise; every term is
             // finite, so 0 x term adds nothing.
-            const double mask = (d2 < r2max) & (j != i) & (d2 > 0) ? 1.0 : 0.0;
+            const double mask = (d2 < r2max) & (d2 > 0) ? 1.0 : 0.0; // d2 > 0: not i itself
             const double r = std::sqrt(d2 + tiny);
             const double vdotr = (vxi - v.vx[j]) * dx + (vyi - v.vy[j]) * dy;
             // One division for three quotients, 1/r, 1/(r^2 + eta^2) and 1/(rho_i + rho_j):
