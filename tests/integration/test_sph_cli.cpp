@@ -196,10 +196,13 @@ TEST(SphCli, ReportCarriesTheDocumentedFields) {
     EXPECT_TRUE(fs::exists(snap / "sph_000002_r001.vtu"));
 }
 
-TEST(SphCli, WaterColumnFrontMatchesExperiments) {
+class WaterColumn : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(WaterColumn, FrontMatchesExperiments) {
     // a = 0.3 m, 1891 particles, T* up to 2.6: the surge front Z(T) within 10% of both data sets
     // for T in [1, 2.5] with the default (fixed, no-slip-like) walls.
-    const auto j = run_sph("column", 1, "--setup column --end-time 0.33 --interval 1000");
+    const auto j = run_sph("column_" + GetParam(), 1,
+                           "--setup column --end-time 0.33 --interval 1000 --grid " + GetParam());
     ASSERT_FALSE(j.is_null());
     for (const auto &iv : j["intervals"])
         EXPECT_EQ(iv["ranks"][0]["escaped"], 0) << "fluid outside the tank";
@@ -215,6 +218,8 @@ TEST(SphCli, WaterColumnFrontMatchesExperiments) {
         }
     EXPECT_GE(compared, 8);
 }
+INSTANTIATE_TEST_SUITE_P(Grids, WaterColumn, ::testing::Values("table", "sorted"),
+                         [](const auto &info) { return info.param; });
 
 struct SphBadInput {
     std::string name, args, expect;

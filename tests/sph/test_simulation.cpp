@@ -1,7 +1,9 @@
 // Whole simulations in process (one MPI rank): hydrostatics of the still tank, and momentum
-// balance in the closed tank.
+// balance in the closed tank, with the Cell+Table grid (stored pair lists) and Cell+Sorted (its
+// own pair loops).
 #include "sphperf/sph/physics.hpp"
 #include "sphperf/sph/simulation.hpp"
+#include "sphperf/sph/sorted.hpp"
 
 #include <gtest/gtest.h>
 #include <mpi.h>
@@ -22,7 +24,14 @@ Config base_config(Setup setup, double scale) {
 }
 } // namespace
 
-TEST(StillTank, PressureIsHydrostaticAfterSettling) {
+template <class Grid> class StillTank : public ::testing::Test {};
+struct GridName {
+    template <class G> static std::string GetName(int) { return std::string(G::name); }
+};
+using Grids = ::testing::Types<CellTable, CellSorted>;
+TYPED_TEST_SUITE(StillTank, Grids, GridName);
+
+TYPED_TEST(StillTank, PressureIsHydrostaticAfterSettling) {
     // Scale 0.5 (4740 particles, 0.3 m deep), default walls. The block drops R_cell / 2 and
     // spreads to the walls; after 0.5 s the waves have died down, and the pressure, averaged
     // over 0.5..1.0 s, is compared with rho g d in 5 cm depth bins, d below the local free
@@ -34,7 +43,7 @@ TEST(StillTank, PressureIsHydrostaticAfterSettling) {
     cfg.interval = 5000;
     const Geometry geo = make_geometry(cfg);
     Domain dom(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
-    Simulation<CellTable> sim(cfg, geo, dom);
+    Simulation<TypeParam> sim(cfg, geo, dom);
     constexpr double band = 0.05, bin = 0.05, min_depth = 0.15;
     const double margin = cfg.physics.cell_size();
     std::map<int, std::pair<double, long>> bins;
@@ -66,8 +75,9 @@ TEST(StillTank, PressureIsHydrostaticAfterSettling) {
         const double ratio = sum.first / static_cast<double>(sum.second);
         EXPECT_NEAR(ratio, 1.0, 0.05)
             << "depth " << k * bin << ".." << (k + 1) * bin << " m: <p / (rho g d)> = " << ratio;
-        std::printf("still tank: depth %.2f..%.2f m, <p / (rho g d)> = %.4f over %ld samples\n",
-                    k * bin, (k + 1) * bin, ratio, sum.second);
+        std::printf(
+            "still tank (%s): depth %.2f..%.2f m, <p / (rho g d)> = %.4f over %ld samples\n",
+            TypeParam::name.data(), k * bin, (k + 1) * bin, ratio, sum.second);
     }
 }
 
@@ -78,7 +88,7 @@ TEST(StillTank, PressureIsHydrostaticAfterSettling) {
 // a step leaves behind is the one its forces were computed from (the viscosity reads the
 // half-step velocity, the filter changes densities after the forces). A pair missed on one side
 // by the neighbour search, or a force that is not antisymmetric, breaks the balance.
-TEST(StillTank, FluidMomentumChangesOnlyByWeightAndWalls) {
+TYPED_TEST(StillTank, FluidMomentumChangesOnlyByWeightAndWalls) {
     Config cfg = base_config(Setup::still, 0.5);
     cfg.steps = 600;
     cfg.interval = 600;
@@ -86,7 +96,7 @@ TEST(StillTank, FluidMomentumChangesOnlyByWeightAndWalls) {
     cfg.physics.shepard_every = 0;
     const Geometry geo = make_geometry(cfg);
     Domain dom(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
-    Simulation<CellTable> sim(cfg, geo, dom);
+    Simulation<TypeParam> sim(cfg, geo, dom);
     const QuinticKernel k = cfg.physics.kernel();
     const double support = cfg.physics.cell_size();
     int checked = 0;
@@ -127,7 +137,8 @@ TEST(StillTank, FluidMomentumChangesOnlyByWeightAndWalls) {
         ++checked;
     });
     EXPECT_EQ(checked, 6);
-    std::printf("closed still tank: internal forces cancel to %.2g of their magnitudes\n", worst);
+    std::printf("closed still tank (%s): internal forces cancel to %.2g of their magnitudes\n",
+                TypeParam::name.data(), worst);
 }
 
 int main(int argc, char **argv) {

@@ -29,7 +29,8 @@ public:
     using Neighbours = SortedNeighbours;
     // Rows of the sorted grid per window cell: candidates examined per particle fall from
     // 3 x 3 cells to 3 x (2 rows_per_cell + 1) / rows_per_cell, while each range stays long
-    // enough to fill vectors (500 dam-break steps, 1 thread: 1, 2, 3, 4 and 6 rows took about 4.5, 4.0, 3.8, 3.6 and 3.7 s).
+    // enough to fill vectors (500 dam-break steps, 1 thread: 1, 2, 3, 4 and 6 rows took
+    // about 4.5, 4.0, 3.8, 3.6 and 3.7 s).
     static constexpr int rows_per_cell = 4;
 
     // The sorted copy: what the inner loops read, contiguous per cell.
