@@ -1,18 +1,23 @@
-#!/usr/bin/env python3
-"""Cell+Table against Cell+List, as thesis 4.3: time per step on the still and dambreak setups
-at scale 1 and 2, with 1 and 2 threads and 1 and 2 ranks, the two grids run alternately in
-each round so that drifts of the machine hit both alike.
+#!/usr/bin/python3
+"""The three grid schemes against each other: Cell+List, Cell+Table (the thesis' designs, 4.3)
+and Cell+Sorted, on the still and dambreak setups at several scales, 1 and 2 threads, the grids
+run in a rotating order in each round so that drifts of the machine hit all alike.
 
-    python3 scripts/bench-grids.py [--rounds 3] [--steps 300] [--out results/<host>/grid_benchmark.json]
+    /usr/bin/python3 scripts/bench-grids.py [--rounds 3] [--grids list,table,sorted] [--scales 1,2,4]
+        [--particle-steps 3e6] [--out results/<host>/grid_benchmark.json] [--png FILE]
 
-Reports, per configuration, the median time per step of each grid, the List/Table ratio of
-each round (> 1: Table faster) as median with min..max, and the grid-maintenance and
-pair-search shares. Nothing else may run meanwhile. Runs with ranks x threads above the core
-count are marked oversubscribed: their times measure contention as much as the code.
+Per run: wall time per step, ns per ordered pair (wall time / neighbour interactions, both
+physics stages and the grid included), particle-steps/s and peak RSS. Per configuration: the
+median of each with min..max, and each grid's speed-up over table from the ratios of the same
+round. Then per grid: the 2-thread speed-up (median over setups and scales) and the bytes per
+particle above the fixed cost (peak RSS slope between the smallest and largest scale). Steps per
+run: --particle-steps / particles, within [--min-steps, --max-steps]. Nothing else may run
+meanwhile. Runs with ranks x threads above the core count are marked oversubscribed.
 """
 import argparse
 import itertools
 import json
+import math
 import os
 import socket
 import statistics
@@ -22,6 +27,7 @@ import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build")), "bin")
+GRIDS = ("list", "table", "sorted")
 
 
 def run_sph(grid, setup, scale, threads, ranks, steps, tmp):
@@ -34,74 +40,188 @@ def run_sph(grid, setup, scale, threads, ranks, steps, tmp):
     if r.returncode != 0:
         sys.exit(f"bench-grids: {' '.join(cmd)} failed: {r.stderr.strip()}")
     j = json.load(open(report))
-    timers = j["totals"]["timers"]
-    return {"step_s": j["wall_s"] / steps, "grid_s": timers["grid_s"]["max"] / steps,
-            "pairs_s": timers["pairs_s"]["max"] / steps, "particles": j["particles"]["field"]}
+    particles = j["particles"]["field"] + j["particles"]["wall"]
+    return {"step_s": j["wall_s"] / steps,
+            # Per rank-thread: the wall time of all of them over the pairs they computed.
+            "ns_per_pair": 1e9 * ranks * threads / j["neighbour_interactions_per_s"],
+            "particle_steps_per_s": j["particle_steps_per_s"],
+            "peak_rss_bytes": max(j["peak_rss_bytes"]), "particles": particles,
+            "field": j["particles"]["field"]}
+
+
+def spread(values):
+    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+
+def parse_list(text, kind, name):
+    try:
+        values = [kind(v) for v in text.split(",")]
+    except ValueError:
+        sys.exit(f"bench-grids: --{name} '{text}': expected a comma-separated list of numbers")
+    if not values or any(v <= 0 for v in values):
+        sys.exit(f"bench-grids: --{name} '{text}': every value must be > 0")
+    return values
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--steps", type=int, default=300)
-    ap.add_argument("--setups", default="still,dambreak")
-    ap.add_argument("--scales", default="1,2")
-    ap.add_argument("--threads", default="1,2")
-    ap.add_argument("--ranks", default="1,2")
+    ap.add_argument("--rounds", type=int, default=3, help="default 3")
+    ap.add_argument("--grids", default=",".join(GRIDS), help="default list,table,sorted")
+    ap.add_argument("--setups", default="still,dambreak", help="default still,dambreak")
+    ap.add_argument("--scales", default="1,2,4", help="default 1,2,4")
+    ap.add_argument("--threads", default="1,2", help="default 1,2")
+    ap.add_argument("--ranks", default="1", help="default 1")
+    ap.add_argument("--particle-steps", type=float, default=3e6, help="per run, default 3e6")
+    ap.add_argument("--min-steps", type=int, default=40, help="default 40")
+    ap.add_argument("--max-steps", type=int, default=400, help="default 400")
     ap.add_argument("--out", help="JSON output (default results/<host>/grid_benchmark.json)")
+    ap.add_argument("--png", help="plot (default: the JSON's path with .png)")
     args = ap.parse_args()
-    if args.rounds < 1 or args.steps < 1:
-        sys.exit(f"bench-grids: --rounds {args.rounds} and --steps {args.steps} must be >= 1")
+    if args.rounds < 1 or args.min_steps < 1 or args.max_steps < args.min_steps:
+        sys.exit(f"bench-grids: --rounds {args.rounds} must be >= 1 and 1 <= --min-steps "
+                 f"{args.min_steps} <= --max-steps {args.max_steps}")
+    grids = args.grids.split(",")
+    for g in grids:
+        if g not in GRIDS:
+            sys.exit(f"bench-grids: --grids: unknown grid '{g}' (expected list, table or sorted)")
+    for s in args.setups.split(","):
+        if s not in ("still", "dambreak"):
+            sys.exit(f"bench-grids: --setups: unknown setup '{s}' (expected still or dambreak)")
+    scales = parse_list(args.scales, float, "scales")
+    threads = parse_list(args.threads, int, "threads")
+    ranks = parse_list(args.ranks, int, "ranks")
     if not os.access(os.path.join(BIN, "sph"), os.X_OK):
         sys.exit(f"bench-grids: {BIN}/sph missing; run scripts/build.sh first")
     out = args.out or os.path.join(ROOT, "results", socket.gethostname(), "grid_benchmark.json")
+    png = args.png or os.path.splitext(out)[0] + ".png"
     cores = os.cpu_count() or 1
-    configs = list(itertools.product(args.setups.split(","), [float(s) for s in args.scales.split(",")],
-                                     [int(t) for t in args.threads.split(",")],
-                                     [int(r) for r in args.ranks.split(",")]))
-    results = {c: {"list": [], "table": []} for c in configs}
+    configs = list(itertools.product(args.setups.split(","), scales, threads, ranks))
+
+    # Particles per configuration from a 1-step run, for the step count.
+    steps = {}
     with tempfile.TemporaryDirectory() as tmp:
+        for c in configs:
+            if (c[0], c[1]) not in steps:
+                n = run_sph("table", c[0], c[1], 1, 1, 1, tmp)["particles"]
+                steps[(c[0], c[1])] = max(args.min_steps,
+                                          min(args.max_steps, math.ceil(args.particle_steps / n)))
+        results = {c: {g: [] for g in grids} for c in configs}
         for rnd in range(args.rounds):
             for k, c in enumerate(configs):
                 print(f"round {rnd + 1}/{args.rounds}, config {k + 1}/{len(configs)}: {c}",
-                      file=sys.stderr)
-                # Alternate which grid goes first, so neither always runs on a warmer machine.
-                order = ["list", "table"] if (rnd + k) % 2 == 0 else ["table", "list"]
-                for g in order:
-                    results[c][g].append(run_sph(g, *c, args.steps, tmp))
+                      file=sys.stderr, flush=True)
+                # Rotate which grid goes first, so none always runs on a warmer machine.
+                shift = (rnd + k) % len(grids)
+                for g in grids[shift:] + grids[:shift]:
+                    results[c][g].append(run_sph(g, *c, steps[(c[0], c[1])], tmp))
 
     rows = []
-    print(f"\n{'setup':9s} {'scale':>5s} {'thr':>3s} {'rk':>3s} {'particles':>9s} "
-          f"{'list ms/step':>12s} {'table ms/step':>13s} {'List/Table':>10s} {'min..max':>12s} "
-          f"{'grid% L/T':>10s}")
+    print(f"\n{'setup':9s} {'scale':>5s} {'thr':>3s} {'rk':>3s} {'particles':>9s} {'steps':>5s} "
+          + " ".join(f"{g + ' ms':>10s} {'ns/pair':>7s}" for g in grids)
+          + ("  sorted/table" if "sorted" in grids and "table" in grids else ""))
     for c in configs:
-        lst, tab = results[c]["list"], results[c]["table"]
-        ratios = [a["step_s"] / b["step_s"] for a, b in zip(lst, tab)]
-        med = lambda v, key: statistics.median(x[key] for x in v)
+        runs = results[c]
         row = {"setup": c[0], "scale": c[1], "threads": c[2], "ranks": c[3],
-               "oversubscribed": c[2] * c[3] > cores, "particles": lst[0]["particles"],
-               "steps": args.steps, "rounds": args.rounds,
-               "list_step_s": med(lst, "step_s"), "table_step_s": med(tab, "step_s"),
-               "list_grid_s": med(lst, "grid_s"), "table_grid_s": med(tab, "grid_s"),
-               "list_pairs_s": med(lst, "pairs_s"), "table_pairs_s": med(tab, "pairs_s"),
-               "list_over_table": {"median": statistics.median(ratios), "min": min(ratios),
-                                   "max": max(ratios)}}
+               "oversubscribed": c[2] * c[3] > cores, "particles": runs[grids[0]][0]["particles"],
+               "steps": steps[(c[0], c[1])], "rounds": args.rounds, "grids": {}}
+        for g in grids:
+            row["grids"][g] = {key: spread([r[key] for r in runs[g]])
+                               for key in ("step_s", "ns_per_pair", "particle_steps_per_s",
+                                           "peak_rss_bytes")}
+            if g != "table" and "table" in grids:
+                row["grids"][g]["speedup_over_table"] = spread(
+                    [t["step_s"] / r["step_s"] for r, t in zip(runs[g], runs["table"])])
         rows.append(row)
-        print(f"{c[0]:9s} {c[1]:5g} {c[2]:3d} {c[3]:3d} {row['particles']:9d} "
-              f"{row['list_step_s'] * 1e3:12.2f} {row['table_step_s'] * 1e3:13.2f} "
-              f"{row['list_over_table']['median']:10.3f} "
-              f"{row['list_over_table']['min']:.3f}..{row['list_over_table']['max']:.3f} "
-              f"{100 * row['list_grid_s'] / row['list_step_s']:4.1f}/"
-              f"{100 * row['table_grid_s'] / row['table_step_s']:4.1f}"
-              f"{'  (oversubscribed)' if row['oversubscribed'] else ''}")
+        line = f"{c[0]:9s} {c[1]:5g} {c[2]:3d} {c[3]:3d} {row['particles']:9d} {row['steps']:5d} "
+        line += " ".join(f"{row['grids'][g]['step_s']['median'] * 1e3:10.2f} "
+                         f"{row['grids'][g]['ns_per_pair']['median']:7.1f}" for g in grids)
+        if "sorted" in grids and "table" in grids:
+            s = row["grids"]["sorted"]["speedup_over_table"]
+            line += f"  {s['median']:.2f} ({s['min']:.2f}..{s['max']:.2f})"
+        print(line + ("  (oversubscribed)" if row["oversubscribed"] else ""))
+
+    summary = {}
+    for g in grids:
+        entry = {}
+        two = [(a, b) for a in rows for b in rows
+               if (a["setup"], a["scale"], a["ranks"]) == (b["setup"], b["scale"], b["ranks"])
+               and a["threads"] == 1 and b["threads"] == 2 and not b["oversubscribed"]]
+        if two:
+            entry["two_thread_speedup"] = spread(
+                [a["grids"][g]["step_s"]["median"] / b["grids"][g]["step_s"]["median"]
+                 for a, b in two])
+        one = [r for r in rows if r["threads"] == 1 and r["ranks"] == 1]
+        if one:
+            entry["ns_per_pair_1_thread"] = spread(
+                [r["grids"][g]["ns_per_pair"]["median"] for r in one])
+        per_setup = []
+        for setup in {r["setup"] for r in one}:
+            mine = sorted((r for r in one if r["setup"] == setup), key=lambda r: r["scale"])
+            if len(mine) >= 2 and mine[-1]["particles"] > mine[0]["particles"]:
+                lo, hi = mine[0], mine[-1]
+                per_setup.append(
+                    (hi["grids"][g]["peak_rss_bytes"]["median"] -
+                     lo["grids"][g]["peak_rss_bytes"]["median"]) /
+                    (hi["particles"] - lo["particles"]))
+        if per_setup:
+            entry["bytes_per_particle_above_fixed"] = spread(per_setup)
+        summary[g] = entry
+    print()
+    for g, e in summary.items():
+        parts = []
+        if "ns_per_pair_1_thread" in e:
+            parts.append(f"ns/pair at 1 thread {e['ns_per_pair_1_thread']['median']:.1f} "
+                         f"({e['ns_per_pair_1_thread']['min']:.1f}..{e['ns_per_pair_1_thread']['max']:.1f})")
+        if "two_thread_speedup" in e:
+            parts.append(f"2-thread speed-up {e['two_thread_speedup']['median']:.2f} "
+                         f"({e['two_thread_speedup']['min']:.2f}..{e['two_thread_speedup']['max']:.2f})")
+        if "bytes_per_particle_above_fixed" in e:
+            parts.append(f"bytes/particle above fixed {e['bytes_per_particle_above_fixed']['median']:.0f}")
+        print(f"{g:6s}: " + ", ".join(parts))
+
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True,
                             text=True).stdout.strip()
-    report = {"schema": 1, "benchmark": "grid_comparison", "host": socket.gethostname(),
-              "git_commit": commit, "cores": cores, "results": rows}
+    report = {"schema": 2, "benchmark": "grid_comparison", "host": socket.gethostname(),
+              "git_commit": commit, "cores": cores, "particle_steps_per_run": args.particle_steps,
+              "results": rows, "summary": summary}
     os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
     with open(out + ".tmp", "w") as f:
         json.dump(report, f, indent=2)
     os.replace(out + ".tmp", out)
     print(f"written {out}")
+    plot(rows, grids, png)
+
+
+def plot(rows, grids, png):
+    """ns per ordered pair per configuration and grid (1 rank), medians with min..max bars."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("bench-grids: matplotlib missing (python3-matplotlib), no plot", file=sys.stderr)
+        return
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    for ax, t in zip(axes, (1, 2)):
+        sel = [r for r in rows if r["threads"] == t and r["ranks"] == 1]
+        width = 0.8 / max(1, len(grids))
+        for k, g in enumerate(grids):
+            med = [r["grids"][g]["ns_per_pair"]["median"] for r in sel]
+            lo = [m - r["grids"][g]["ns_per_pair"]["min"] for m, r in zip(med, sel)]
+            hi = [r["grids"][g]["ns_per_pair"]["max"] - m for m, r in zip(med, sel)]
+            xs = [i + (k - (len(grids) - 1) / 2) * width for i in range(len(sel))]
+            ax.bar(xs, med, width, yerr=[lo, hi], capsize=2, label=g)
+        ax.set_xticks(range(len(sel)))
+        ax.set_xticklabels([f"{r['setup']}\ns{r['scale']:g}" for r in sel], fontsize=8)
+        ax.set_title(f"{t} thread{'s' if t > 1 else ''}, 1 rank")
+        ax.axhline(10, color="k", lw=0.8, ls="--")
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].set_ylabel("ns per ordered pair x threads (wall, both stages)")
+    axes[0].legend()
+    fig.suptitle("Grid schemes: time per neighbour interaction (dashed: 10 ns target)")
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    print(f"written {png}")
 
 
 if __name__ == "__main__":

@@ -36,8 +36,12 @@ def roofline(model, out):
     ax.axvline(oi, color="tab:red", ls="--", lw=1,
                label=f"SPH kernel, no-reuse intensity {oi:.2f} flop/B")
     ax.axvline(89 / 56, color="tab:purple", ls=":", lw=1, label="thesis 89/56 flop/B")
+    sorted_oi = rl.get("schemes", {}).get("sorted", {}).get("operational_intensity_flop_per_byte")
+    if sorted_oi:
+        ax.axvline(sorted_oi, color="tab:green", ls="--", lw=1,
+                   label=f"Cell+Sorted, every candidate computed: {sorted_oi:.2f} flop/B")
     for p in rl["runs"]:
-        ax.plot(oi, p["achieved_gflops"], "o", ms=6,
+        ax.plot(p.get("operational_intensity_flop_per_byte", oi), p["achieved_gflops"], "o", ms=6,
                 label=f"{p['grid']} {p['ranks']}x{p['threads']}: {p['achieved_gflops']:.2f} GFLOP/s")
     ax.set_xlabel("operational intensity (flop/byte)")
     ax.set_ylabel("GFLOP/s")

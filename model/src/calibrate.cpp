@@ -265,12 +265,30 @@ json disorder_by_setup(const std::vector<SphRun> &runs) {
 }
 
 json roofline(const json &machine, const std::vector<SphRun> &runs) {
-    double flops = 0, bytes = 0;
-    json stages = json::array();
-    for (const auto &c : interaction_costs) {
-        flops += c.flops;
-        bytes += c.bytes;
-        stages.push_back({{"stage", c.stage}, {"flops", c.flops}, {"bytes", c.bytes}});
+    struct Totals {
+        double flops = 0, bytes = 0;
+        json stages = json::array();
+    };
+    auto totals = [](std::span<const InteractionCost> costs) {
+        Totals t;
+        for (const auto &c : costs) {
+            t.flops += c.flops;
+            t.bytes += c.bytes;
+            t.stages.push_back({{"stage", c.stage}, {"flops", c.flops}, {"bytes", c.bytes}});
+        }
+        return t;
+    };
+    // The stored-list grids (list, table) at the top level, every scheme under "schemes".
+    const Totals stored = totals(interaction_costs);
+    const double flops = stored.flops, bytes = stored.bytes;
+    const json stages = stored.stages;
+    json schemes = json::object();
+    for (const char *grid : {"list", "table", "sorted"}) {
+        const Totals t = totals(interaction_costs_of(grid));
+        schemes[grid] = {{"flops_per_interaction", t.flops},
+                         {"bytes_per_interaction", t.bytes},
+                         {"operational_intensity_flop_per_byte", t.flops / t.bytes},
+                         {"stages", t.stages}};
     }
     const double peak = machine.at("peak_gflops").get<double>();
     const double per_core = machine.value("peak_gflops_per_core", peak);
@@ -283,15 +301,17 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
         for (const auto &iv : r.intervals)
             for (const auto &rk : iv.ranks)
                 interactions += rk.interactions * rk.steps;
-        // Achieved rates over the run's wall time on all its ranks.
-        const double gflops = r.wall_s > 0 ? interactions * flops / r.wall_s * 1e-9 : 0.0;
-        const double gbps = r.wall_s > 0 ? interactions * bytes / r.wall_s * 1e-9 : 0.0;
+        // Achieved rates over the run's wall time on all its ranks, by its own scheme's counts.
+        const Totals own = totals(interaction_costs_of(r.config.grid));
+        const double gflops = r.wall_s > 0 ? interactions * own.flops / r.wall_s * 1e-9 : 0.0;
+        const double gbps = r.wall_s > 0 ? interactions * own.bytes / r.wall_s * 1e-9 : 0.0;
         const int cores =
             std::min(r.config.ranks * r.config.threads, machine.at("topology").value("cores", 1));
         points.push_back({{"run", r.path},
                           {"grid", r.config.grid},
                           {"ranks", r.config.ranks},
                           {"threads", r.config.threads},
+                          {"operational_intensity_flop_per_byte", own.flops / own.bytes},
                           {"achieved_gflops", gflops},
                           {"achieved_GBps", gbps},
                           {"fraction_of_peak", gflops / std::min(peak, per_core * cores)},
@@ -317,6 +337,7 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
             {"thesis_flops_per_pair", 89},
             {"thesis_bytes_per_pair", 56},
             {"stages", stages},
+            {"schemes", schemes},
             {"ceilings",
              {{"peak_gflops", peak},
               {"peak_gflops_per_core", per_core},

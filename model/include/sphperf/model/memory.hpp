@@ -11,8 +11,9 @@ constexpr double bytes_per_particle = 10 * 8 + 8 + 1 + 4 + 8 + 4;
 // The list index, the per-thread search block kept across steps (up to 2x capacity).
 constexpr double bytes_per_interaction = 4 + 2 * 4 + 4;
 // Cell+Sorted stores no pairs and no list offsets, but a cell-ordered copy of every particle:
-// x, y, vx, vy, rho, p, mass, fluid (8 doubles), id, original index and cell key.
-constexpr double sorted_bytes_per_particle = bytes_per_particle - 4 + 8 * 8 + 8 + 4 + 4;
+// x, y, vx, vy, rho, P/rho^2, mass, fluid and remote flags (9 doubles), original index and
+// cell key.
+constexpr double sorted_bytes_per_particle = bytes_per_particle - 4 + 9 * 8 + 4 + 4;
 
 struct MemoryCounts {
     double per_particle, per_interaction;

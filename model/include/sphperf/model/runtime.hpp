@@ -10,7 +10,9 @@
 #include <nlohmann/json.hpp>
 
 #include <optional>
+#include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace sphperf::model {
@@ -28,6 +30,20 @@ inline constexpr InteractionCost interaction_costs[] = {
     {"momentum", 43.8, 60.0},
     {"shepard filter (every 30 steps)", 0.8, 1.5},
 };
+// Cell+Sorted (sph/src/sorted.cpp): no search and no stored pairs, but every candidate of the
+// three column ranges (2.15 per interaction: 3 x 2.25 cells against a disc of one cell radius)
+// runs the whole branch-free term, masked. Counted per candidate, times 2.15.
+inline constexpr InteractionCost sorted_interaction_costs[] = {
+    {"continuity over candidates (2.15 per interaction)", 105.4, 103.2},
+    {"momentum over candidates", 137.6, 120.4},
+    {"shepard filter (every 30 steps)", 2.9, 2.3},
+};
+// The table of a grid scheme.
+inline std::span<const InteractionCost> interaction_costs_of(std::string_view grid) {
+    if (grid == "sorted")
+        return sorted_interaction_costs;
+    return interaction_costs;
+}
 
 // The cost of one rank's step from its work counts; the terms the fit may use.
 inline constexpr const char *cost_terms[] = {"const", "interactions", "owned",   "walls",
