@@ -288,30 +288,10 @@ std::filesystem::path manifest_path(const std::filesystem::path &dir) {
     return dir / "manifest.json";
 }
 
-void to_json(nlohmann::json &j, const CheckpointFile &f) {
-    j = {{"name", f.name}, {"bytes", f.bytes}, {"fnv1a64", f.fnv1a64}};
-}
-void from_json(const nlohmann::json &j, CheckpointFile &f) {
-    j.at("name").get_to(f.name);
-    j.at("bytes").get_to(f.bytes);
-    j.at("fnv1a64").get_to(f.fnv1a64);
-}
-void to_json(nlohmann::json &j, const RebalanceRecord &r) {
-    j = {{"step", r.step},
-         {"cuts", r.cuts},
-         {"moved", r.moved},
-         {"seconds", r.seconds},
-         {"imbalance_before", r.imbalance_before},
-         {"imbalance_after", r.imbalance_after}};
-}
-void from_json(const nlohmann::json &j, RebalanceRecord &r) {
-    j.at("step").get_to(r.step);
-    j.at("cuts").get_to(r.cuts);
-    j.at("moved").get_to(r.moved);
-    j.at("seconds").get_to(r.seconds);
-    j.at("imbalance_before").get_to(r.imbalance_before);
-    j.at("imbalance_after").get_to(r.imbalance_after);
-}
+// Flat records: nlohmann's own (de)serialisers, key = member name; a missing key throws.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CheckpointFile, name, bytes, fnv1a64)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RebalanceRecord, step, cuts, moved, seconds, imbalance_before,
+                                   imbalance_after)
 void to_json(nlohmann::json &j, const Manifest &m) {
     j = {{"schema", m.schema},
          {"kind", "sph-checkpoint"},
