@@ -23,11 +23,13 @@ done
 runs="$out/runs"
 mkdir -p "$runs"
 rm -f "$runs"/*.json
-sph() { # sph RANKS NAME ARGS...: one measured run, 1 thread per rank, inline Hockney prediction
-    local ranks=$1 name=$2
+sph() { # sph RANKS[xTHREADS] NAME ARGS...: one measured run (1 thread per rank unless given),
+    # with the inline Hockney prediction
+    local ranks=${1%x*} threads=1 name=$2
+    [ "$ranks" = "$1" ] || threads=${1#*x}
     shift 2
     local t0=$SECONDS
-    bash "$root/scripts/mpirun.sh" -n "$ranks" -t 1 "$build/bin/sph" --quiet --threads 1 \
+    bash "$root/scripts/mpirun.sh" -n "$ranks" -t "$threads" "$build/bin/sph" --quiet --threads "$threads" \
         --machine "$machine" --report "$runs/$name.json" "$@" >/dev/null
     printf '  %-28s %4d s\n' "$name" $((SECONDS - t0))
 }
@@ -56,6 +58,11 @@ calibrate_round() { # calibrate_round LABEL
         sph 3 "cal_still_s0.5_${grid}_r3_$1" --setup still --scale 0.5 --grid "$grid" \
             --steps "$cs_steps" --interval "$c_interval"
     done
+    # One rank x 2 threads (the cost per interaction at 2 threads is fitted on its own).
+    sph 1x2 "cal_dambreak_s0.5_sorted_t2_$1" --setup dambreak --scale 0.5 --grid sorted \
+        --steps "$c_steps" --interval "$c_interval"
+    sph 1x2 "cal_still_s0.5_sorted_t2_$1" --setup still --scale 0.5 --grid sorted \
+        --steps "$cs_steps" --interval "$c_interval"
     cal_s=$((cal_s + SECONDS - t0))
 }
 cal_s=0
@@ -99,6 +106,8 @@ validate_run 2 val_dambreak_s1_sorted_r2 --setup dambreak --grid sorted --steps 
     --interval "$interval"
 validate_run 3 val_still_s1_sorted_r3 --setup still --grid sorted --steps "$vs_steps" \
     --interval "$interval"
+validate_run 1x2 val_dambreak_s1_sorted_t2 --setup dambreak --grid sorted --steps "$v_steps" \
+    --interval "$interval"
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
 echo "== calibration"
@@ -106,11 +115,12 @@ echo "== calibration"
     --out "$out/model.json"
 
 echo "== predictions"
-predict() { # predict NAME ARGS...
-    local name=$1
+predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
+    local name=$1 threads=1
     shift
-    "$build/bin/sphmodel" predict --model "$out/model.json" --threads 1 --interval "$interval" \
-        --out "$out/prediction_$name.json" "$@"
+    if [ "${1:-}" = "--threads" ]; then threads=$2; shift 2; fi
+    "$build/bin/sphmodel" predict --model "$out/model.json" --threads "$threads" \
+        --interval "$interval" --out "$out/prediction_$name.json" "$@"
 }
 predict dambreak_s1_table --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 --steps "$v_steps"
 predict dambreak_s1_table_balanced --setup dambreak --grid table --scale 1 --ranks 2,4 \
@@ -121,6 +131,8 @@ predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps 
 predict still_s1_list --setup still --grid list --scale 1 --ranks 2 --steps "$vs_steps"
 predict dambreak_s1_sorted --setup dambreak --grid sorted --scale 1 --ranks 2 --steps "$v_steps"
 predict still_s1_sorted --setup still --grid sorted --scale 1 --ranks 3 --steps "$vs_steps"
+predict dambreak_s1_sorted_t2 --threads 2 --setup dambreak --grid sorted --scale 1 --ranks 1 \
+    --steps "$v_steps"
 
 echo "== validation"
 "$build/bin/sphmodel" validate --prediction "$out"/prediction_*.json --measured "$runs"/val_*.json \

@@ -57,16 +57,19 @@ def scaling(predictions, validation, out):
     fig, axes = plt.subplots(1, 3, figsize=(16, 4))
     measured = {}
     for r in validation["configurations"]:
-        measured[(r["setup"], r["grid"], r["scale"], r["ranks"],
+        measured[(r["setup"], r["grid"], r["scale"], r["ranks"], r["threads"],
                   r.get("decomposition", "equal"))] = r["measured_wall_s"]
     for p in predictions:
         q = p["request"]
         dec = p["configurations"][0].get("decomposition", "equal")
-        key = f"{q['setup']} s{q['scale']:g} {q['grid']}" + ("" if dec == "equal" else f" {dec}")
+        key = (f"{q['setup']} s{q['scale']:g} {q['grid']}" + ("" if dec == "equal" else f" {dec}")
+               + ("" if q["threads"] == 1 else f" x{q['threads']} threads"))
         ranks = [c["ranks"] for c in p["configurations"]]
         wall = [c["wall_s"] for c in p["configurations"]]
-        line, = axes[0].plot(ranks, wall, "-", label=f"{key} predicted")
-        mr = [(c["ranks"], measured.get((q["setup"], q["grid"], q["scale"], c["ranks"], dec)))
+        # A single rank count is a marker, not an invisible one-point line.
+        line, = axes[0].plot(ranks, wall, "-" if len(ranks) > 1 else "x", label=f"{key} predicted")
+        mr = [(c["ranks"], measured.get((q["setup"], q["grid"], q["scale"], c["ranks"],
+                                         q["threads"], dec)))
               for c in p["configurations"]]
         mr = [(r, w) for r, w in mr if w is not None]
         if mr:
@@ -84,7 +87,7 @@ def scaling(predictions, validation, out):
     axes[1].set_ylabel("speed-up vs fewest ranks")
     axes[2].set_ylabel("parallel efficiency")
     for ax in axes:
-        ax.set_xlabel("ranks (1 thread each; above 2 they share the 2 cores)")
+        ax.set_xlabel("ranks (1 thread each unless marked; above 2 they share the 2 cores)")
         ax.grid(alpha=0.3)
     # One legend, outside the panels, so that it hides no point.
     handles, labels = axes[0].get_legend_handles_labels()

@@ -423,13 +423,22 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                     t.pairs_regression += m.pairs_regression * n;
                     t.exported += m.exported * n;
                 }
-                if (all_busy && idle_onset_step < 0)
+                if (balanced && all_busy && idle_onset_step < 0)
                     idle_onset_step = static_cast<double>(s0);
                 wall += step_mean * n;
                 intervals.push_back({{"step", s1},
                                      {"time_s", static_cast<double>(s1) * req.dt},
                                      {"wall_s", step_mean * n},
                                      {"ranks", jr}});
+            }
+            json first_busy = nullptr;
+            if (!balanced) {
+                const IdleOnset o =
+                    idle_onset(trace, tgt, sph::equal_cuts(P, tgt.columns), req.dt, steps);
+                idle_onset_step = o.all ? static_cast<double>(*o.all) : -1.0;
+                first_busy = json::array();
+                for (const auto &f : o.per_rank)
+                    first_busy.push_back(f ? json(*f) : json(nullptr));
             }
             json per_rank = json::array();
             double compute = 0, comm = 0, wait = 0, idle = 0;
@@ -487,7 +496,10 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  {"totals",
                   {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},
                  {"first_step_all_ranks_busy",
-                  idle_onset_step >= 0 ? json(idle_onset_step) : json(nullptr)},
+                  idle_onset_step >= 0 ? json(static_cast<std::int64_t>(idle_onset_step))
+                                       : json(nullptr)},
+                 {"first_step_busy_per_rank", first_busy},
+                 {"idle_fraction", wall > 0 ? idle / (P * wall) : 0.0},
                  {"per_rank", per_rank},
                  {"intervals", intervals}});
         }

@@ -123,6 +123,19 @@ json validate(const json &header, const std::vector<json> &predictions,
                     model_comm_errors.push_back(std::abs(rel(pc, mc)));
                 series.push_back(e);
             }
+        // Thesis 3.7.3: the first report step at whose end every rank holds a field particle
+        // (the onset lies after the interval before it), against the predicted step.
+        json onset = nullptr;
+        for (std::size_t k = 0; k < m.intervals.size() && onset.is_null(); ++k) {
+            const auto &rs = m.intervals[k].ranks;
+            if (!rs.empty() &&
+                std::all_of(rs.begin(), rs.end(), [](const RankStats &r) { return r.field >= 1; }))
+                onset = {{"measured_step", m.intervals[k].step},
+                         {"measured_after_step", k ? m.intervals[k - 1].step : 0}};
+        }
+        if (onset.is_null())
+            onset = {{"measured_step", nullptr}, {"measured_after_step", m.config.steps}};
+        onset["predicted_step"] = p->value("first_step_all_ranks_busy", json(nullptr));
         const double err = rel(p->at("wall_s").get<double>(), m.wall_s);
         wall_errors.push_back(std::abs(err));
         if (opt.max_error && std::abs(err) > *opt.max_error)
@@ -142,6 +155,7 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"measured_wall_s", m.wall_s},
                  {"predicted_wall_s", p->at("wall_s")},
                  {"wall_error", err},
+                 {"first_step_all_ranks_busy", onset},
                  {"phases",
                   {{"compute", phase("compute_s", compute)},
                    {"comm", comm_phase},

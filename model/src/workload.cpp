@@ -212,6 +212,32 @@ WorkDensity density_at(const Trace &trace, double t) {
             (1 - w) * trace.interactions_per_field[lo] + w * trace.interactions_per_field[hi]};
 }
 
+IdleOnset idle_onset(const Trace &trace, const Target &target, const std::vector<int> &cuts,
+                     double dt, std::int64_t steps) {
+    IdleOnset o;
+    o.per_rank.assign(cuts.size() - 1, std::nullopt);
+    const std::int64_t stride = std::max<std::int64_t>(1, steps / 20000);
+    for (std::int64_t s = 0; s <= steps; s += stride) {
+        const double t = static_cast<double>(s) * dt;
+        const auto cols =
+            rescale_columns(histogram_at(trace, source_time(t, trace.scale, target.scale)),
+                            trace.cell_size, trace.tank_length, target.cell_size,
+                            target.tank_length, target.columns, target.fluid_particles);
+        const auto slabs = recut(cols, target.wall_columns, cuts);
+        bool all = true;
+        for (std::size_t r = 0; r < slabs.size(); ++r) {
+            if (!o.per_rank[r] && slabs[r].field >= 1)
+                o.per_rank[r] = s;
+            all = all && o.per_rank[r].has_value();
+        }
+        if (all) {
+            o.all = s;
+            break;
+        }
+    }
+    return o;
+}
+
 std::vector<SlabLoad> recut(const std::vector<double> &fluid, const std::vector<double> &walls,
                             int ranks) {
     const int columns = static_cast<int>(fluid.size());

@@ -108,6 +108,33 @@ TEST(ModelCli, CalibratePredictValidate) {
                                                                    ? "time-shared calibration run"
                                                                    : "none (within the cores)");
     }
+    // Idle onset (thesis 3.7.3): each rank's predicted first busy step lies within the report
+    // interval in which the real 3-rank run's rank first held a field particle; null if never.
+    {
+        const auto run3 = load(f.run3);
+        const auto &onset = p["configurations"][2]["first_step_busy_per_rank"];
+        ASSERT_EQ(onset.size(), 3u);
+        for (int rk = 0; rk < 3; ++rk) {
+            long long after = 0, at = -1;
+            for (const auto &iv : run3["intervals"]) {
+                if (iv["ranks"][rk]["field"].get<double>() >= 1) {
+                    at = iv["step"].get<long long>();
+                    break;
+                }
+                after = iv["step"].get<long long>();
+            }
+            if (at < 0) {
+                EXPECT_TRUE(onset[rk].is_null()) << "rank " << rk << ": " << onset[rk];
+            } else {
+                ASSERT_FALSE(onset[rk].is_null()) << "rank " << rk;
+                EXPECT_GE(onset[rk].get<long long>(), after == 0 ? 0 : after + 1) << "rank " << rk;
+                EXPECT_LE(onset[rk].get<long long>(), at) << "rank " << rk;
+            }
+        }
+        // The dam break of 60 steps never reaches the third slab: no rank count-wide onset.
+        EXPECT_TRUE(onset[2].is_null());
+        EXPECT_TRUE(p["configurations"][2]["first_step_all_ranks_busy"].is_null());
+    }
     // The measured 2- and 3-rank runs are matched to their predicted configurations.
     const auto val = f.dir / "validation.json";
     r = run(bin("sphmodel") + " validate --prediction " + pred.string() + " --measured " +
@@ -116,6 +143,10 @@ TEST(ModelCli, CalibratePredictValidate) {
     const auto v = load(val);
     EXPECT_EQ(v["configurations"].size(), 2u);
     EXPECT_TRUE(v["unmatched_runs"].empty());
+    for (const auto &c : v["configurations"]) {
+        EXPECT_TRUE(c["first_step_all_ranks_busy"]["measured_step"].is_null()) << c["run"];
+        EXPECT_TRUE(c["first_step_all_ranks_busy"]["predicted_step"].is_null()) << c["run"];
+    }
     // A bound that no real prediction meets makes validate exit 1, after writing the report.
     r = run(bin("sphmodel") + " validate --max-error 0 --prediction " + pred.string() +
             " --measured " + f.run3.string() + " --out " + (f.dir / "v0.json").string());

@@ -144,6 +144,57 @@ TEST(Workload, TraceInterpolatesAndRefusesToExtrapolate) {
     }
 }
 
+TEST(Workload, IdleOnsetIsWhenTheWaterReachesEachSlab) {
+    // Water spreading right over 4 columns of 1 m: slab 1 crosses 1 particle half way to
+    // t = 0.1 s, slab 2 half way to 0.2 s, slab 3 half way to 0.3 s.
+    Trace t;
+    t.setup = "dambreak";
+    t.scale = 1;
+    t.cell_size = 1;
+    t.tank_length = 4;
+    t.times_s = {0.0, 0.1, 0.2, 0.3};
+    t.columns = {{8, 0, 0, 0}, {6, 2, 0, 0}, {4, 2, 2, 0}, {2, 2, 2, 2}};
+    Target same;
+    same.scale = 1;
+    same.cell_size = 1;
+    same.tank_length = 4;
+    same.columns = 4;
+    same.fluid_particles = 8;
+    same.wall_columns.assign(4, 0.0);
+    const double dt = 0.01;
+    auto o = idle_onset(t, same, {0, 1, 2, 3, 4}, dt, 30);
+    ASSERT_EQ(o.per_rank.size(), 4u);
+    const std::int64_t expected[] = {0, 5, 15, 25};
+    for (int r = 0; r < 4; ++r) {
+        ASSERT_TRUE(o.per_rank[r]) << "rank " << r;
+        EXPECT_NEAR(static_cast<double>(*o.per_rank[r]), expected[r], 1.0) << "rank " << r;
+    }
+    ASSERT_TRUE(o.all);
+    EXPECT_EQ(*o.all, *o.per_rank[3]);
+    // Two slabs: the second holds columns 2-3, busy from the water reaching column 2.
+    o = idle_onset(t, same, {0, 2, 4}, dt, 30);
+    ASSERT_TRUE(o.all);
+    EXPECT_NEAR(static_cast<double>(*o.all), 15, 1.0);
+    // Not within the steps asked: no onset, and the slabs reached keep theirs.
+    o = idle_onset(t, same, {0, 1, 2, 3, 4}, dt, 20);
+    EXPECT_FALSE(o.all);
+    EXPECT_FALSE(o.per_rank[3]);
+    EXPECT_TRUE(o.per_rank[2]);
+    // Froude: at scale 4 (lengths x 4, times x 2, 16 columns of 1 m) times double, and counts
+    // are rescaled to the target's 128 particles: slab 3 (source column 3) holds 16 x the
+    // source count, so it is busy once the source holds 1/16, at 0.2 + 0.1 (1/16) / 2 s,
+    // target time 0.40625 s: step 41 (rescaled counts make an early tip: model/README.md).
+    Target big = same;
+    big.scale = 4;
+    big.tank_length = 16;
+    big.columns = 16;
+    big.fluid_particles = 8 * 16;
+    big.wall_columns.assign(16, 0.0);
+    o = idle_onset(t, big, {0, 4, 8, 12, 16}, dt, 60);
+    ASSERT_TRUE(o.all);
+    EXPECT_NEAR(static_cast<double>(*o.all), 41, 1.0);
+}
+
 TEST(Workload, DisorderFollowsSimulatedTimeAndAcousticTimeForAnotherSpacing) {
     // Two runs with the same record times: the record is their mean of descents per
     // interaction summed over ranks.

@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -75,6 +77,16 @@ std::vector<SlabLoad> recut(const std::vector<double> &fluid_columns,
 // The same for any valid cuts (sph/balance.hpp: the balanced decomposition).
 std::vector<SlabLoad> recut(const std::vector<double> &fluid_columns,
                             const std::vector<double> &wall_columns, const std::vector<int> &cuts);
+
+// Thesis 3.7.3: until the water reaches a slab its rank idles. The first step at which each
+// slab of `cuts`, and then every slab, holds at least one field particle, on the trace carried
+// to the target; empty: not within `steps`. Scanned every step up to 20,000 looks, then coarser.
+struct IdleOnset {
+    std::optional<std::int64_t> all;
+    std::vector<std::optional<std::int64_t>> per_rank;
+};
+IdleOnset idle_onset(const Trace &trace, const Target &target, const std::vector<int> &cuts,
+                     double dt, std::int64_t steps);
 
 // How far the particles' memory order has decayed from the initial lattice, as the stored-list
 // grids see it: neighbours found out of id order per interaction (the id sort's work, and the
