@@ -31,7 +31,8 @@ Config parse(int argc, char **argv) {
     std::int64_t steps = 0;
     double end_time = 0;
     CLI::App app{"SPH proxy: 2D weakly compressible SPH (dam break, still tank, water column) "
-                 "on MPI slabs with OpenMP threads, Cell+List or Cell+Table grids, instrumented "
+                 "on MPI slabs with OpenMP threads, Cell+List, Cell+Table or Cell+Sorted grids, "
+                 "instrumented "
                  "for performance modelling. Launch with scripts/mpirun.sh -n RANKS."};
     app.add_option("--setup", setup, "dambreak, still or column");
     app.add_option("--grid", grid,
