@@ -203,7 +203,7 @@ def markdown(model, validation, args, out):
         if not lvl:
             continue
         factors = ", ".join(f"{r['factor']:.2f}" for r in lvl["runs"])
-        lines.append(f"Machine drift, {c['grid']} grid: the calibration runs took {factors} times the "
+        lines.append(f"Machine drift, {c['grid']} grid at {c['threads']} thread(s): the calibration runs took {factors} times the "
                      f"least-squares fit (spread {lvl['spread_pct']:.0f} %); the model takes the median "
                      f"run's level ({lvl['factor']:.3f}, mean {lvl.get('factor_mean', float('nan')):.3f}; per setup: " +
                      ", ".join(f"{k} {v['factor']:.3f}" for k, v in lvl.get("per_setup", {}).items()) +
