@@ -25,6 +25,8 @@ import subprocess
 import sys
 import tempfile
 
+from script_common import pyplot, write_json
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build")), "bin")
 GRIDS = ("list", "table", "sorted")
@@ -184,22 +186,14 @@ def main():
     report = {"schema": 2, "benchmark": "grid_comparison", "host": socket.gethostname(),
               "git_commit": commit, "cores": cores, "particle_steps_per_run": args.particle_steps,
               "results": rows, "summary": summary}
-    os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
-    with open(out + ".tmp", "w") as f:
-        json.dump(report, f, indent=2)
-    os.replace(out + ".tmp", out)
-    print(f"written {out}")
+    write_json(out, report)
     plot(rows, grids, png)
 
 
 def plot(rows, grids, png):
     """ns per ordered pair per configuration and grid (1 rank), medians with min..max bars."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("bench-grids: matplotlib missing (python3-matplotlib), no plot", file=sys.stderr)
+    plt = pyplot("bench-grids")
+    if plt is None:
         return
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
     for ax, t in zip(axes, (1, 2)):

@@ -30,6 +30,8 @@ import subprocess
 import sys
 import tempfile
 
+from script_common import pyplot, write_json
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build")), "bin")
 INTERVAL = 10  # report steps: the measured onset's resolution
@@ -53,7 +55,8 @@ def parse_list(text, kind, name, minimum):
 def run(cmd):
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
-        fail(f"{' '.join(cmd)} failed: {r.stderr.strip().splitlines()[-1:] or r.returncode}")
+        last = r.stderr.strip().splitlines()
+        fail(f"{' '.join(cmd)} failed: {last[-1] if last else f'exit {r.returncode}'}")
     return r.stdout
 
 
@@ -269,20 +272,13 @@ def main():
            "measured": {f"{s:g}": v for s, v in measured.items()},
            "predicted": {f"{s:g}": v for s, v in predicted.items()},
            "rank_check": check, "thesis_law_fits": fits, "rows": rows}
-    with open(out + ".tmp", "w") as fh:
-        json.dump(doc, fh, indent=2)
-    os.replace(out + ".tmp", out)
-    print(f"written {out}")
+    write_json(out, doc)
     plot(doc, slabs, png)
 
 
 def plot(doc, slabs, png):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("idle-onset: no matplotlib (run with /usr/bin/python3); no PNG", file=sys.stderr)
+    plt = pyplot("idle-onset")
+    if plt is None:
         return
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
     colours = dict(zip(slabs, ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"]))
