@@ -155,6 +155,35 @@ double cross_validate(const std::vector<std::vector<double>> &X, std::span<const
     return std::sqrt(ss / static_cast<double>(std::max<std::size_t>(count, 1)));
 }
 
+double cross_validate_runs(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                           std::span<const int> groups) {
+    const std::set<int> distinct(groups.begin(), groups.end());
+    if (distinct.size() < 2)
+        throw std::invalid_argument("cross_validate_runs: needs at least two runs");
+    const std::size_t p = X.empty() ? 0 : X.front().size();
+    const std::vector<std::string> names(p, "t");
+    double ss = 0;
+    for (int g : distinct) {
+        std::vector<std::vector<double>> Xt;
+        std::vector<double> yt;
+        for (std::size_t i = 0; i < X.size(); ++i)
+            if (groups[i] != g) {
+                Xt.push_back(X[i]);
+                yt.push_back(y[i]);
+            }
+        const LinearFit f = fit_linear(Xt, yt, names);
+        double predicted = 0, measured = 0;
+        for (std::size_t i = 0; i < X.size(); ++i)
+            if (groups[i] == g) {
+                predicted += f.predict(X[i]);
+                measured += y[i];
+            }
+        const double e = measured > 0 ? predicted / measured - 1.0 : 0.0;
+        ss += e * e;
+    }
+    return std::sqrt(ss / static_cast<double>(distinct.size()));
+}
+
 RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X,
                    std::span<const double> y, std::span<const int> groups) {
     if (X.size() != y.size() || y.size() != groups.size())

@@ -61,6 +61,33 @@ TEST(Fit, CrossValidationPrefersThePlantedTerms) {
     EXPECT_GT(cross_validate(one, y, groups), 5 * cross_validate(both, y, groups));
 }
 
+TEST(Fit, RunCrossValidationSeesATermThatOnlyMattersAcrossScales) {
+    // Four runs: three small (a per-step constant is a third of their time) and one four times
+    // larger. Per point, dropping the constant costs little in seconds next to the large run's
+    // noise; per run, it mispredicts the small runs' sums by tens of percent.
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0, 0.02);
+    std::vector<std::vector<double>> with, without;
+    std::vector<double> y;
+    std::vector<int> groups;
+    for (int run = 0; run < 4; ++run) {
+        const double size = run == 3 ? 4.0 : 1.0;
+        for (int k = 0; k < 30; ++k) {
+            const double interactions = size * (80e3 + 2e3 * k);
+            with.push_back({interactions, 1.0});
+            without.push_back({interactions});
+            y.push_back((50e-9 * interactions + 2e-3) * (1 + noise(rng)));
+            groups.push_back(run);
+        }
+    }
+    const double good = cross_validate_runs(with, y, groups);
+    const double bad = cross_validate_runs(without, y, groups);
+    EXPECT_LT(good, 0.03);
+    EXPECT_GT(bad, 0.08);
+    EXPECT_THROW(cross_validate_runs(with, y, std::vector<int>(y.size(), 0)),
+                 std::invalid_argument);
+}
+
 TEST(Fit, RunLevelIsTheMedianRunsAndIgnoresOneSlowRun) {
     // Five runs of 60 ns per interaction (2 % noise); one of them measured 35 % slow, with the
     // largest work so it has the leverage. Least squares is pulled up, the median run level is not.

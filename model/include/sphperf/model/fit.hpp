@@ -37,6 +37,13 @@ LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y);
 double cross_validate(const std::vector<std::vector<double>> &X, std::span<const double> y,
                       std::span<const int> groups);
 
+// What a prediction is judged on: each run (group) left out in turn, its summed time predicted
+// by a fit to the others; the root mean square over runs of the relative error of that sum.
+// Unlike cross_validate, a run of small per-step times counts as much as one of large ones, so a
+// term that only matters when the work is extrapolated (to another scale) shows. Needs >= 2 runs.
+double cross_validate_runs(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                           std::span<const int> groups);
+
 // Run-to-run machine speed: each group's (calibration run's) measured sum over the fit's
 // predicted sum. A machine that slows down for minutes (measured here: 35 % for two whole runs)
 // moves a least-squares fit by the leverage of those runs; the median of the factors does not.
