@@ -6,6 +6,8 @@ set -euo pipefail
 # beside ours; they are comparison tools, not dependencies of sphperf.
 # --with-fuzz also installs clang and its OpenMP runtime for the libFuzzer harnesses
 # (scripts/fuzz.sh); CI does not run them.
+# --with-slurm also installs Slurm (slurmctld, slurmd, srun/sbatch) and munge, for
+# scripts/slurm/local-slurm.sh, a one-node Slurm on this machine for tests and demos.
 
 packages=(
     build-essential cmake pkg-config git
@@ -23,8 +25,9 @@ for arg in "$@"; do
     case "$arg" in
         --with-reference-tools) packages+=(likwid netpipe-openmpi) ;;
         --with-fuzz) packages+=(clang libomp-dev) ;;
+        --with-slurm) packages+=(slurm-wlm munge) ;;
         *)
-            echo "install-deps: unknown argument '$arg' (expected --with-reference-tools, --with-fuzz or nothing)" >&2
+            echo "install-deps: unknown argument '$arg' (expected --with-reference-tools, --with-fuzz, --with-slurm or nothing)" >&2
             exit 2
             ;;
     esac

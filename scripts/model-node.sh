@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The model half of the main job: calibrate the SPH runtime model with short runs at half
-# scale (and a few shorter ones at 1.5), predict a validation set it never ran, measure that set, validate, and plot.
+# scale (and a few shorter ones at 1.5), predict a validation set it never ran, measure that set,
+# validate, and plot.
 #   scripts/model-node.sh --machine MACHINE.json --out DIR [--quick]
 # Writes DIR/{model,prediction_*,validation}.json, validation.md, the PNGs, and the SPH
 # reports under DIR/runs/. Nothing else should run meanwhile: the figures are timings.

@@ -43,7 +43,7 @@ done
 sph 2 mirror_r2 --boundary mirror --steps 150
 sph 3 checkpoint_r3 --steps 100 --checkpoint "$scratch/ck" --decomposition balanced
 sph 2 restart_r2 --steps 200 --restart "$scratch/ck" --decomposition balanced
-"$build/bin/sphmodel" predict --model "$root/results/vm/model.json" --setup dambreak \
+"$build/bin/sphmodel" predict --model "$root/results/reference/vm/model.json" --setup dambreak \
     --grid sorted --scale 0.5 --ranks 1,2,4 --steps 500 --decomposition equal,balanced \
     --out "$scratch/prediction.json" >/dev/null
 echo "  sphmodel predict: clean"

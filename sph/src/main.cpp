@@ -49,7 +49,10 @@ Config parse(int argc, char **argv) {
                         ->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40));
     auto *o_end = app.add_option("--end-time", end_time, "Simulated time to reach, in seconds")
                       ->check(FiniteNonNegative);
-    app.add_option("--threads", cfg.threads, "OpenMP threads per rank (default OMP_NUM_THREADS)")
+    app.add_option(
+           "--threads", cfg.threads,
+           "OpenMP threads per rank (default OMP_NUM_THREADS, else SLURM_CPUS_PER_TASK, else the "
+           "rank's bound cores shared by the node's ranks)")
         ->check(CLI::Range(1, 1024));
     app.add_option("--interval", cfg.interval, "Steps per report interval")
         ->check(CLI::Range(1, 1 << 30));
@@ -273,23 +276,57 @@ void simulate(const Config &cfg, const Geometry &geo, int rank) {
     }
 }
 
+// Leading integer of an environment variable ("2(x3)" gives 2); 0 when unset or not a number.
+int env_count(const char *name) {
+    const char *v = std::getenv(name);
+    return v ? std::atoi(v) : 0;
+}
+
+// Threads per rank when neither --threads nor OMP_NUM_THREADS says: a Slurm task's own CPUs
+// (SLURM_CPUS_PER_TASK); else the cores this rank is bound to, shared fairly by the node's ranks
+// when the launcher bound none of them apart (every rank sees the whole node or allocation).
+int default_threads(const Topology &topo) {
+    if (const int per_task = env_count("SLURM_CPUS_PER_TASK"); per_task > 0)
+        return per_task;
+    const int bound = topo.this_process_binding().weight();
+    const int local = std::max(
+        {1, env_count("OMPI_COMM_WORLD_LOCAL_SIZE"), env_count("SLURM_STEP_TASKS_PER_NODE")});
+    if (bound <= 0)
+        return std::max(1, topo.pus() / local);
+    return bound < topo.pus() ? bound : std::max(1, bound / local);
+}
+
 int run(int argc, char **argv, int rank, int ranks) {
     const Config cfg = parse(argc, argv);
     const Geometry geo = make_geometry(cfg);
     validate(cfg, geo, ranks);
     check_outputs(cfg, geo, rank, ranks);
+    const Topology topo;
     if (cfg.threads > 0)
         omp_set_num_threads(cfg.threads);
+    else if (!std::getenv("OMP_NUM_THREADS"))
+        omp_set_num_threads(default_threads(topo));
 
     if (rank == 0) {
         // Threads beyond the cores this rank may run on only take turns: say so.
-        const Topology topo;
         const int bound = topo.this_process_binding().weight();
-        if (bound > 0 && omp_get_max_threads() > bound)
+        const int threads = omp_get_max_threads();
+        if (bound > 0 && threads > bound)
             std::fprintf(stderr,
                          "sph: warning: %d threads share the %d core(s) this rank is bound to; "
                          "launch with scripts/mpirun.sh -n RANKS -t THREADS\n",
-                         omp_get_max_threads(), bound);
+                         threads, bound);
+        // And ranks x threads beyond the node's (or the Slurm allocation's) cores.
+        const int local = std::max(
+            {1, env_count("OMPI_COMM_WORLD_LOCAL_SIZE"), env_count("SLURM_STEP_TASKS_PER_NODE")});
+        const int cores =
+            env_count("SLURM_CPUS_ON_NODE") > 0 ? env_count("SLURM_CPUS_ON_NODE") : topo.pus();
+        if (local * threads > cores)
+            std::fprintf(stderr,
+                         "sph: warning: %d ranks x %d threads on this node exceed its %d "
+                         "core(s)%s; they take turns\n",
+                         local, threads, cores,
+                         std::getenv("SLURM_CPUS_ON_NODE") ? " in the Slurm allocation" : "");
     }
     // From here on an error may strike one rank only, while the others wait in an exchange:
     // it ends the whole job (MPI_Abort), naming the rank, instead of leaving them waiting.

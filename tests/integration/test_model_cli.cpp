@@ -20,7 +20,7 @@ struct Fixture {
     Fixture() {
         dir = scratch("model_cli");
         machine = dir / "machine.json";
-        const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/vm/";
+        const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/reference/vm/";
         Run r = run(bin("machine-profile") + " --stream " + vm + "stream.json --dgemm " + vm +
                     "dgemm.json --pingpong " + vm + "pingpong.json --out " + machine.string());
         EXPECT_EQ(r.code, 0) << r.err;
