@@ -1,7 +1,6 @@
 #!/usr/bin/env bash
 # The model half of the main job: calibrate the SPH runtime model with short runs at half
-# scale (and a few shorter ones at 1.5), predict a validation set it never ran, measure that set,
-# validate, and plot.
+# scale, predict a validation set it never ran, measure that set, validate, and plot.
 #   scripts/model-node.sh --machine MACHINE.json --out DIR [--quick]
 # Writes DIR/{model,prediction_*,validation}.json, validation.md, the PNGs, and the SPH
 # reports under DIR/runs/. Nothing else should run meanwhile: the figures are timings.
@@ -41,10 +40,8 @@ sph() { # sph RANKS[xTHREADS] NAME ARGS...: one measured run (1 thread per rank 
 # the second is the longer one.
 if [ "$quick" -eq 1 ]; then
     v_steps=200 v2_steps=40 vs_steps=40 c_steps=200 cs_steps=40 interval=20 c_interval=10
-    c1_steps=20 cs1_steps=10
 else
     v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 cs_steps=300 interval=100 c_interval=20
-    c1_steps=60 cs1_steps=30
 fi
 
 # Calibration runs in two rounds, one before the validation runs and one amid them: the machine's
@@ -60,16 +57,6 @@ calibrate_round() { # calibrate_round LABEL
         # per core; other loads fall back to the exchange benchmark's.
         sph 3 "cal_still_s0.5_${grid}_r3_$1" --setup still --scale 0.5 --grid "$grid" \
             --steps "$cs_steps" --interval "$c_interval"
-        # The stored-list grids cost 10-15 % less per interaction at scale 1 than at half scale
-        # (the same instructions per interaction, counted with callgrind): one short 1-rank run
-        # per setup at scale 1.5, a scale the validation never runs, lets cross-validation pick
-        # the terms that carry the cost across scales (model/README.md "Cost across scales").
-        if [ "$grid" != sorted ]; then
-            sph 1 "cal_dambreak_s1.5_${grid}_short_$1" --setup dambreak --scale 1.5 \
-                --grid "$grid" --steps "$c1_steps" --interval "$((c1_steps / 3))"
-            sph 1 "cal_still_s1.5_${grid}_short_$1" --setup still --scale 1.5 --grid "$grid" \
-                --steps "$cs1_steps" --interval "$((cs1_steps / 3))"
-        fi
     done
     # One rank x 2 threads (the cost per interaction at 2 threads is fitted on its own).
     sph 1x2 "cal_dambreak_s0.5_sorted_t2_$1" --setup dambreak --scale 0.5 --grid sorted \

@@ -248,7 +248,7 @@ std::string calibration_table(const json &m) {
                  c.at("grid").get<std::string>().c_str(), c.at("threads").get<int>(), d(c.at("r2")),
                  d(c.at("rse")), d(c.at("cv_rmse_s")), c.at("points").get<std::size_t>());
         if (c.contains("cv_run_rel_rms") && c.at("cv_run_rel_rms").is_number())
-            s += fmt("    terms chosen by the held-out runs' summed compute: %.1f %% rms error\n",
+            s += fmt("    held-out runs' summed compute: %.1f %% rms error\n",
                      100 * d(c.at("cv_run_rel_rms")));
         for (const auto &[t, v] : c.at("coefficients").items())
             s += fmt("    %-13s %12.4g s  +- %.3g (%.1f %%)\n", t.c_str(), d(v.at("value")),
