@@ -25,7 +25,7 @@ import subprocess
 import sys
 import tempfile
 
-from script_common import pyplot, write_json
+from script_common import git_commit, pyplot, write_json
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build")), "bin")
@@ -181,8 +181,7 @@ def main():
             parts.append(f"bytes/particle above fixed {e['bytes_per_particle_above_fixed']['median']:.0f}")
         print(f"{g:6s}: " + ", ".join(parts))
 
-    commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True,
-                            text=True).stdout.strip()
+    commit = git_commit(ROOT)
     report = {"schema": 2, "benchmark": "grid_comparison", "host": socket.gethostname(),
               "git_commit": commit, "cores": cores, "particle_steps_per_run": args.particle_steps,
               "results": rows, "summary": summary}

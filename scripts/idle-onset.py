@@ -30,7 +30,7 @@ import subprocess
 import sys
 import tempfile
 
-from script_common import pyplot, write_json
+from script_common import git_commit, pyplot, write_json
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build")), "bin")
@@ -262,8 +262,7 @@ def main():
             print(f"{P} slabs: measured growth per scale increment {fit['growth_per_scale_increment']:.3f} "
                   f"(thesis 1.3), onset ~ s^{fit['power_law_exponent']:.3f} (Froude 0.5)")
 
-    commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True,
-                            text=True).stdout.strip()
+    commit = git_commit(ROOT)
     doc = {"schema": 1, "benchmark": "idle_onset", "host": host, "git_commit": commit,
            "build": first_report.get("build"), "topology": first_report.get("topology"),
            "grid": "sorted", "report_interval_steps": INTERVAL,

@@ -1,7 +1,15 @@
-"""What the measurement scripts share: an atomic JSON write and matplotlib's pyplot (Agg)."""
+"""What the measurement scripts share: the git commit, an atomic JSON write and matplotlib's
+pyplot (Agg)."""
 import json
 import os
+import subprocess
 import sys
+
+
+def git_commit(root):
+    """The commit of the checkout at root (every report carries it); empty outside git."""
+    return subprocess.run(["git", "-C", root, "rev-parse", "HEAD"], capture_output=True,
+                          text=True).stdout.strip()
 
 
 def write_json(path, doc):

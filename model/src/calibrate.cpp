@@ -139,7 +139,7 @@ json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs)
     const std::vector<std::string> optional{"const", "owned",      "walls",
                                             "ghost", "cell_moves", "descents"};
     json candidates = json::array();
-    double best_cv = std::numeric_limits<double>::infinity(), best_cv_s = best_cv;
+    double best_cv = std::numeric_limits<double>::infinity();
     json best_cv_run = nullptr;
     std::vector<std::string> best;
     std::vector<double> y;
@@ -148,6 +148,7 @@ json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs)
         y.push_back(p.compute_s_per_step);
         groups.push_back(p.run);
     }
+    const bool by_run = std::set<int>(groups.begin(), groups.end()).size() >= 2;
     for (unsigned mask = 0; mask < (1u << optional.size()); ++mask) {
         std::vector<std::string> terms{"interactions"};
         for (std::size_t k = 0; k < optional.size(); ++k)
@@ -160,32 +161,27 @@ json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs)
                 X.back().push_back(p.work.value(t));
         }
         try {
-            const double cv_s = cross_validate(X, y, groups);
+            const double cv = cross_validate(X, y, groups);
             // Chosen on the per-step error; the held-out runs' summed-compute error is reported
             // beside. Selecting on it was tried in session 12 and not kept (model/README.md,
             // "Cost across scales"): on one main job's runs it helped, on the next it dropped
-            // the descents term and doubled the scale-2 misses.
-            const bool by_run = std::set<int>(groups.begin(), groups.end()).size() >= 2;
-            const double cv_run = by_run ? cross_validate_runs(X, y, groups) : 0.0;
-            const double cv = cv_s;
+            // the descents term and tripled the scale-2 misses.
+            const json cv_run = by_run ? json(cross_validate_runs(X, y, groups)) : json(nullptr);
             // Every term is a cost: a set that fits one negative (one cost traded against
             // another, as ghosts against cell moves in two runs) is not a physical model.
             const LinearFit all = fit_linear(X, y, terms);
             if (std::any_of(all.coef.begin(), all.coef.end(), [](double c) { return c < 0; })) {
                 candidates.push_back({{"terms", terms},
-                                      {"cv_rmse_s", cv_s},
-                                      {"cv_run_rel_rms", by_run ? json(cv_run) : json(nullptr)},
+                                      {"cv_rmse_s", cv},
+                                      {"cv_run_rel_rms", cv_run},
                                       {"negative_cost", true}});
                 continue;
             }
-            candidates.push_back({{"terms", terms},
-                                  {"cv_rmse_s", cv_s},
-                                  {"cv_run_rel_rms", by_run ? json(cv_run) : json(nullptr)}});
+            candidates.push_back({{"terms", terms}, {"cv_rmse_s", cv}, {"cv_run_rel_rms", cv_run}});
             // A term must pay for itself: 1% better held-out error, else the smaller set wins.
             if (cv < best_cv * (best.empty() || terms.size() < best.size() ? 1.0 : 0.99)) {
                 best_cv = cv;
-                best_cv_s = cv_s;
-                best_cv_run = by_run ? json(cv_run) : json(nullptr);
+                best_cv_run = cv_run;
                 best = terms;
             }
         } catch (const std::invalid_argument &) {
@@ -236,7 +232,7 @@ json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs)
                       {"spread_pct", level.spread_pct},
                       {"runs", factors},
                       {"per_setup", per_setup}};
-    j["cv_rmse_s"] = best_cv_s;
+    j["cv_rmse_s"] = best_cv;
     j["cv_run_rel_rms"] = best_cv_run;
     j["selected_by"] = "held-out root mean square error per step (cv_rmse_s); cv_run_rel_rms is "
                        "the held-out runs' summed-compute error, reported only";

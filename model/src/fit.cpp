@@ -120,6 +120,22 @@ LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y) {
     return fit_linear(X, y, {"m", "r"});
 }
 
+namespace {
+// The fit to every row whose fold is not `held_out`: one turn of a cross-validation.
+LinearFit fit_without(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                      std::span<const int> fold, int held_out) {
+    std::vector<std::vector<double>> Xt;
+    std::vector<double> yt;
+    for (std::size_t i = 0; i < X.size(); ++i)
+        if (fold[i] != held_out) {
+            Xt.push_back(X[i]);
+            yt.push_back(y[i]);
+        }
+    const std::size_t p = X.empty() ? 0 : X.front().size();
+    return fit_linear(Xt, yt, std::vector<std::string>(p, "t"));
+}
+} // namespace
+
 double cross_validate(const std::vector<std::vector<double>> &X, std::span<const double> y,
                       std::span<const int> groups) {
     std::set<int> distinct(groups.begin(), groups.end());
@@ -132,19 +148,10 @@ double cross_validate(const std::vector<std::vector<double>> &X, std::span<const
         for (int k = 0; k < folds; ++k)
             distinct.insert(k);
     }
-    const std::size_t p = X.empty() ? 0 : X.front().size();
-    std::vector<std::string> names(p, "t");
     double ss = 0;
     std::size_t count = 0;
     for (int g : distinct) {
-        std::vector<std::vector<double>> Xt;
-        std::vector<double> yt;
-        for (std::size_t i = 0; i < X.size(); ++i)
-            if (fold[i] != g) {
-                Xt.push_back(X[i]);
-                yt.push_back(y[i]);
-            }
-        const LinearFit f = fit_linear(Xt, yt, names);
+        const LinearFit f = fit_without(X, y, fold, g);
         for (std::size_t i = 0; i < X.size(); ++i)
             if (fold[i] == g) {
                 const double e = f.predict(X[i]) - y[i];
@@ -160,18 +167,9 @@ double cross_validate_runs(const std::vector<std::vector<double>> &X, std::span<
     const std::set<int> distinct(groups.begin(), groups.end());
     if (distinct.size() < 2)
         throw std::invalid_argument("cross_validate_runs: needs at least two runs");
-    const std::size_t p = X.empty() ? 0 : X.front().size();
-    const std::vector<std::string> names(p, "t");
     double ss = 0;
     for (int g : distinct) {
-        std::vector<std::vector<double>> Xt;
-        std::vector<double> yt;
-        for (std::size_t i = 0; i < X.size(); ++i)
-            if (groups[i] != g) {
-                Xt.push_back(X[i]);
-                yt.push_back(y[i]);
-            }
-        const LinearFit f = fit_linear(Xt, yt, names);
+        const LinearFit f = fit_without(X, y, groups, g);
         double predicted = 0, measured = 0;
         for (std::size_t i = 0; i < X.size(); ++i)
             if (groups[i] == g) {

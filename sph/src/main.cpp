@@ -32,8 +32,7 @@ Config parse(int argc, char **argv) {
     double end_time = 0;
     CLI::App app{"SPH proxy: 2D weakly compressible SPH (dam break, still tank, water column) "
                  "on MPI slabs with OpenMP threads, Cell+List, Cell+Table or Cell+Sorted grids, "
-                 "instrumented "
-                 "for performance modelling. Launch with scripts/mpirun.sh -n RANKS."};
+                 "instrumented for performance modelling. Launch with scripts/mpirun.sh -n RANKS."};
     app.add_option("--setup", setup, "dambreak, still or column");
     app.add_option("--grid", grid,
                    "Cell grid: list (Cell+List), table (Cell+Table) or sorted (particles in cell "
@@ -282,6 +281,12 @@ int env_count(const char *name) {
     return v ? std::atoi(v) : 0;
 }
 
+// This job's ranks on this node, as the launcher (mpirun or srun) tells them.
+int ranks_on_node() {
+    return std::max(
+        {1, env_count("OMPI_COMM_WORLD_LOCAL_SIZE"), env_count("SLURM_STEP_TASKS_PER_NODE")});
+}
+
 // Threads per rank when neither --threads nor OMP_NUM_THREADS says: a Slurm task's own CPUs
 // (SLURM_CPUS_PER_TASK); else the cores this rank is bound to, shared fairly by the node's ranks
 // when the launcher bound none of them apart (every rank sees the whole node or allocation).
@@ -289,8 +294,7 @@ int default_threads(const Topology &topo) {
     if (const int per_task = env_count("SLURM_CPUS_PER_TASK"); per_task > 0)
         return per_task;
     const int bound = topo.this_process_binding().weight();
-    const int local = std::max(
-        {1, env_count("OMPI_COMM_WORLD_LOCAL_SIZE"), env_count("SLURM_STEP_TASKS_PER_NODE")});
+    const int local = ranks_on_node();
     if (bound <= 0)
         return std::max(1, topo.pus() / local);
     return bound < topo.pus() ? bound : std::max(1, bound / local);
@@ -317,16 +321,14 @@ int run(int argc, char **argv, int rank, int ranks) {
                          "launch with scripts/mpirun.sh -n RANKS -t THREADS\n",
                          threads, bound);
         // And ranks x threads beyond the node's (or the Slurm allocation's) cores.
-        const int local = std::max(
-            {1, env_count("OMPI_COMM_WORLD_LOCAL_SIZE"), env_count("SLURM_STEP_TASKS_PER_NODE")});
-        const int cores =
-            env_count("SLURM_CPUS_ON_NODE") > 0 ? env_count("SLURM_CPUS_ON_NODE") : topo.pus();
+        const int local = ranks_on_node();
+        const int allocated = env_count("SLURM_CPUS_ON_NODE");
+        const int cores = allocated > 0 ? allocated : topo.pus();
         if (local * threads > cores)
             std::fprintf(stderr,
                          "sph: warning: %d ranks x %d threads on this node exceed its %d "
                          "core(s)%s; they take turns\n",
-                         local, threads, cores,
-                         std::getenv("SLURM_CPUS_ON_NODE") ? " in the Slurm allocation" : "");
+                         local, threads, cores, allocated > 0 ? " in the Slurm allocation" : "");
     }
     // From here on an error may strike one rank only, while the others wait in an exchange:
     // it ends the whole job (MPI_Abort), naming the rank, instead of leaving them waiting.
