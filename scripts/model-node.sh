@@ -110,31 +110,40 @@ validate_run 1x2 val_dambreak_s1_sorted_t2 --setup dambreak --grid sorted --step
     --interval "$interval"
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
-echo "== calibration"
-"$build/bin/sphmodel" calibrate --machine "$machine" --runs "$runs"/cal_*.json \
-    --out "$out/model.json"
+# model_and_validate DIR RULE: calibrate with the compute-cost term rule RULE, predict, validate.
+model_and_validate() {
+    local dir=$1 rule=$2
+    mkdir -p "$dir"
+    echo "== calibration ($rule)"
+    "$build/bin/sphmodel" calibrate --machine "$machine" --runs "$runs"/cal_*.json \
+        --term-selection "$rule" --out "$dir/model.json"
 
-echo "== predictions"
-predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
-    local name=$1 threads=1
-    shift
-    if [ "${1:-}" = "--threads" ]; then threads=$2; shift 2; fi
-    "$build/bin/sphmodel" predict --model "$out/model.json" --threads "$threads" \
-        --interval "$interval" --out "$out/prediction_$name.json" "$@"
+    echo "== predictions ($rule)"
+    predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
+        local name=$1 threads=1
+        shift
+        if [ "${1:-}" = "--threads" ]; then threads=$2; shift 2; fi
+        "$build/bin/sphmodel" predict --model "$dir/model.json" --threads "$threads" \
+            --interval "$interval" --out "$dir/prediction_$name.json" "$@"
+    }
+    predict dambreak_s1_table --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 --steps "$v_steps"
+    predict dambreak_s1_table_balanced --setup dambreak --grid table --scale 1 --ranks 2,4 \
+        --steps "$v_steps" --decomposition balanced
+    predict dambreak_s1_list --setup dambreak --grid list --scale 1 --ranks 1,2,3 --steps "$v_steps"
+    predict dambreak_s2_table --setup dambreak --grid table --scale 2 --ranks 2,4 --steps "$v2_steps"
+    predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps "$vs_steps"
+    predict still_s1_list --setup still --grid list --scale 1 --ranks 2 --steps "$vs_steps"
+    predict dambreak_s1_sorted --setup dambreak --grid sorted --scale 1 --ranks 2 --steps "$v_steps"
+    predict still_s1_sorted --setup still --grid sorted --scale 1 --ranks 3 --steps "$vs_steps"
+    predict dambreak_s1_sorted_t2 --threads 2 --setup dambreak --grid sorted --scale 1 --ranks 1 \
+        --steps "$v_steps"
+
+    echo "== validation ($rule)"
+    "$build/bin/sphmodel" validate --prediction "$dir"/prediction_*.json \
+        --measured "$runs"/val_*.json --out "$dir/validation.json"
 }
-predict dambreak_s1_table --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 --steps "$v_steps"
-predict dambreak_s1_table_balanced --setup dambreak --grid table --scale 1 --ranks 2,4 \
-    --steps "$v_steps" --decomposition balanced
-predict dambreak_s1_list --setup dambreak --grid list --scale 1 --ranks 1,2,3 --steps "$v_steps"
-predict dambreak_s2_table --setup dambreak --grid table --scale 2 --ranks 2,4 --steps "$v2_steps"
-predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps "$vs_steps"
-predict still_s1_list --setup still --grid list --scale 1 --ranks 2 --steps "$vs_steps"
-predict dambreak_s1_sorted --setup dambreak --grid sorted --scale 1 --ranks 2 --steps "$v_steps"
-predict still_s1_sorted --setup still --grid sorted --scale 1 --ranks 3 --steps "$vs_steps"
-predict dambreak_s1_sorted_t2 --threads 2 --setup dambreak --grid sorted --scale 1 --ranks 1 \
-    --steps "$v_steps"
-
-echo "== validation"
-"$build/bin/sphmodel" validate --prediction "$out"/prediction_*.json --measured "$runs"/val_*.json \
-    --out "$out/validation.json"
+# The term rule in use was chosen (session 13) after comparing rules on three main jobs' runs:
+# it is tuned, so the previous rule's result on the same runs is reported beside it.
+model_and_validate "$out" levelled-one-se
+model_and_validate "$out/pooled-one-percent" pooled-one-percent >/dev/null
 /usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" --validation-s "$val_s"

@@ -249,6 +249,16 @@ def markdown(model, validation, args, out):
     if s["wall_abs_error"]:
         lines.append(f"Total wall time |error|: median {100 * s['wall_abs_error']['median']:.1f} %, "
                      f"max {100 * s['wall_abs_error']['max']:.1f} % (targets 5 % and 10 %).")
+        sel = {c.get("term_selection", "pooled-one-percent") for c in model["compute"]}
+        other = os.path.join(args.dir, "pooled-one-percent", "validation.json")
+        if sel == {"levelled-one-se"} and os.path.exists(other):
+            o = load(other)["summary"]["wall_abs_error"]
+            lines.append(f"Compute-cost terms chosen by levelled-one-se (a cost level per setup, the smallest "
+                         f"set within one standard error of the best cross-validation score), a rule picked in "
+                         f"session 13 after comparing four rules on three main jobs' runs: **tuned** against "
+                         f"validation data. Untuned, the previous rule (pooled-one-percent) on the same runs: "
+                         f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
+                         f"(pooled-one-percent/validation.json).")
     if s["inline_comm_abs_error_per_interval"]:
         lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
                      f"measured gap): median per-interval |error| "

@@ -120,24 +120,87 @@ LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y) {
     return fit_linear(X, y, {"m", "r"});
 }
 
+double LevelledFit::level(int cls) const {
+    const auto it = levels.find(cls);
+    return it == levels.end() ? 1.0 : it->second;
+}
+
+LevelledFit fit_levelled(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                         std::vector<std::string> terms, std::span<const int> classes) {
+    if (!classes.empty() && classes.size() != X.size())
+        throw std::invalid_argument("fit_levelled: X and classes differ in length");
+    LevelledFit out;
+    const std::set<int> distinct(classes.begin(), classes.end());
+    out.fit = fit_linear(X, y, terms);
+    if (distinct.size() < 2)
+        return out;
+    for (int c : distinct)
+        out.levels[c] = 1.0;
+    constexpr int max_sweeps = 200;
+    constexpr double tolerance = 1e-10;
+    std::vector<std::vector<double>> Xs = X;
+    for (int sweep = 0; sweep < max_sweeps; ++sweep) {
+        // Levels for the current shape: per class, the least-squares scale of X beta onto y.
+        std::map<int, std::pair<double, double>> sums;
+        for (std::size_t i = 0; i < X.size(); ++i) {
+            const double p = out.fit.predict(X[i]);
+            sums[classes[i]].first += y[i] * p;
+            sums[classes[i]].second += p * p;
+        }
+        double mean = 0, change = 0;
+        std::map<int, double> next;
+        for (const auto &[c, s] : sums) {
+            next[c] = s.second > 0 ? s.first / s.second : 1.0;
+            mean += next[c] / static_cast<double>(sums.size());
+        }
+        for (auto &[c, v] : next) {
+            v /= mean;
+            change = std::max(change, std::abs(v - out.levels[c]));
+        }
+        out.levels = next;
+        // The shape for the current levels: y regressed on level[class] X.
+        for (std::size_t i = 0; i < X.size(); ++i)
+            for (std::size_t k = 0; k < X[i].size(); ++k)
+                Xs[i][k] = out.levels[classes[i]] * X[i][k];
+        out.fit = fit_linear(Xs, y, terms);
+        if (change < tolerance)
+            break;
+    }
+    return out;
+}
+
 namespace {
-// The fit to every row whose fold is not `held_out`: one turn of a cross-validation.
-LinearFit fit_without(const std::vector<std::vector<double>> &X, std::span<const double> y,
-                      std::span<const int> fold, int held_out) {
+std::vector<int> select(std::span<const int> v, const std::vector<std::size_t> &rows) {
+    std::vector<int> out;
+    if (!v.empty())
+        for (std::size_t i : rows)
+            out.push_back(v[i]);
+    return out;
+}
+
+// The levelled fit to every row whose fold is not `held_out`: one turn of a cross-validation.
+LevelledFit fit_without(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                        std::span<const int> fold, int held_out, std::span<const int> classes) {
     std::vector<std::vector<double>> Xt;
     std::vector<double> yt;
+    std::vector<std::size_t> rows;
     for (std::size_t i = 0; i < X.size(); ++i)
         if (fold[i] != held_out) {
             Xt.push_back(X[i]);
             yt.push_back(y[i]);
+            rows.push_back(i);
         }
     const std::size_t p = X.empty() ? 0 : X.front().size();
-    return fit_linear(Xt, yt, std::vector<std::string>(p, "t"));
+    return fit_levelled(Xt, yt, std::vector<std::string>(p, "t"), select(classes, rows));
+}
+
+int class_of(std::span<const int> classes, std::size_t i) {
+    return classes.empty() ? 0 : classes[i];
 }
 } // namespace
 
-double cross_validate(const std::vector<std::vector<double>> &X, std::span<const double> y,
-                      std::span<const int> groups) {
+CvScore cross_validate_score(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                             std::span<const int> groups, std::span<const int> classes) {
     std::set<int> distinct(groups.begin(), groups.end());
     std::vector<int> fold(groups.begin(), groups.end());
     if (distinct.size() < 2) {
@@ -150,30 +213,54 @@ double cross_validate(const std::vector<std::vector<double>> &X, std::span<const
     }
     double ss = 0;
     std::size_t count = 0;
+    std::vector<double> fold_mse;
     for (int g : distinct) {
-        const LinearFit f = fit_without(X, y, fold, g);
+        const LevelledFit f = fit_without(X, y, fold, g, classes);
+        double fold_ss = 0;
+        std::size_t fold_count = 0;
         for (std::size_t i = 0; i < X.size(); ++i)
             if (fold[i] == g) {
-                const double e = f.predict(X[i]) - y[i];
-                ss += e * e;
-                ++count;
+                const double e = f.predict(X[i], class_of(classes, i)) - y[i];
+                fold_ss += e * e;
+                ++fold_count;
             }
+        ss += fold_ss;
+        count += fold_count;
+        if (fold_count > 0)
+            fold_mse.push_back(fold_ss / static_cast<double>(fold_count));
     }
-    return std::sqrt(ss / static_cast<double>(std::max<std::size_t>(count, 1)));
+    CvScore score;
+    const double mse = ss / static_cast<double>(std::max<std::size_t>(count, 1));
+    score.rmse = std::sqrt(mse);
+    if (fold_mse.size() >= 2 && score.rmse > 0) {
+        const Summary s = summarize(fold_mse);
+        double var = 0;
+        for (double v : fold_mse)
+            var += (v - s.avg) * (v - s.avg);
+        var /= static_cast<double>(fold_mse.size() - 1);
+        const double mse_se = std::sqrt(var / static_cast<double>(fold_mse.size()));
+        score.rmse_se = mse_se / (2 * score.rmse);
+    }
+    return score;
+}
+
+double cross_validate(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                      std::span<const int> groups, std::span<const int> classes) {
+    return cross_validate_score(X, y, groups, classes).rmse;
 }
 
 double cross_validate_runs(const std::vector<std::vector<double>> &X, std::span<const double> y,
-                           std::span<const int> groups) {
+                           std::span<const int> groups, std::span<const int> classes) {
     const std::set<int> distinct(groups.begin(), groups.end());
     if (distinct.size() < 2)
         throw std::invalid_argument("cross_validate_runs: needs at least two runs");
     double ss = 0;
     for (int g : distinct) {
-        const LinearFit f = fit_without(X, y, groups, g);
+        const LevelledFit f = fit_without(X, y, groups, g, classes);
         double predicted = 0, measured = 0;
         for (std::size_t i = 0; i < X.size(); ++i)
             if (groups[i] == g) {
-                predicted += f.predict(X[i]);
+                predicted += f.predict(X[i], class_of(classes, i));
                 measured += y[i];
             }
         const double e = measured > 0 ? predicted / measured - 1.0 : 0.0;

@@ -18,6 +18,7 @@ struct Options {
     std::filesystem::path machine, model, out;
     std::vector<std::filesystem::path> runs, predictions, measured;
     bool allow_other_host = false;
+    std::string term_selection = "levelled-one-se";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -42,6 +43,12 @@ int run(int argc, char **argv) {
     cal->add_option("--out", o.out, "model to write (JSON)")->required();
     cal->add_flag("--allow-other-host", o.allow_other_host,
                   "Accept reports measured on another host than the machine profile's");
+    cal->add_option("--term-selection", o.term_selection,
+                    "Compute-cost terms: levelled-one-se (a cost level per setup, the smallest "
+                    "set within one standard error of the best cross-validation score) or "
+                    "pooled-one-percent (one pooled fit, a term kept for 1 % better score)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"levelled-one-se", "pooled-one-percent"}));
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
@@ -116,7 +123,9 @@ int run(int argc, char **argv) {
         for (const auto &r : o.runs)
             runs.push_back(load_sph_run(r));
         const auto model = calibrate(report_header("sphmodel-calibration", topo), machine, runs,
-                                     {o.allow_other_host});
+                                     {o.allow_other_host, o.term_selection == "pooled-one-percent"
+                                                              ? TermSelection::pooled_one_percent
+                                                              : TermSelection::levelled_one_se});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

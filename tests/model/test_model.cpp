@@ -88,6 +88,72 @@ TEST(Fit, RunCrossValidationSeesATermThatOnlyMattersAcrossScales) {
                  std::invalid_argument);
 }
 
+// Two setups at one scale, as the main job calibrates: the dam break's interactions cost 1.2x
+// the still tank's, both proportional to the work (no per-step constant), and the dam break has
+// half the interactions per rank. Pooled, a constant tells the setups apart and soaks up the
+// difference (then extrapolates it with the scale); with a level per setup it stays near zero.
+struct TwoSetups {
+    std::vector<std::vector<double>> with_const, without_const;
+    std::vector<double> y;
+    std::vector<int> runs, setups;
+};
+TwoSetups two_setups() {
+    std::mt19937 rng(13);
+    std::normal_distribution<double> noise(0, 0.02);
+    TwoSetups d;
+    for (int run = 0; run < 4; ++run) {
+        const int setup = run % 2;
+        const double level = setup == 0 ? 1.2 : 1.0;
+        const double base = setup == 0 ? 80e3 : 160e3;
+        for (int k = 0; k < 30; ++k) {
+            const double interactions = base * (1 + 0.01 * k); // the flow changes the count a bit
+            d.with_const.push_back({interactions, 1.0});
+            d.without_const.push_back({interactions});
+            d.y.push_back(level * 12e-9 * interactions * (1 + noise(rng)));
+            d.runs.push_back(run);
+            d.setups.push_back(setup);
+        }
+    }
+    return d;
+}
+
+TEST(Fit, LevelledFitRecoversSetupLevelsWithoutAConstant) {
+    const TwoSetups d = two_setups();
+    const LinearFit pooled = fit_linear(d.with_const, d.y, {"interactions", "const"});
+    // Pooled: a constant of the order of the dam break's whole step time.
+    EXPECT_GT(pooled.coefficient("const"), 0.3 * 1.2 * 12e-9 * 80e3);
+    const LevelledFit lev = fit_levelled(d.with_const, d.y, {"interactions", "const"}, d.setups);
+    ASSERT_EQ(lev.levels.size(), 2u);
+    EXPECT_NEAR(lev.level(0) / lev.level(1), 1.2, 0.05);
+    EXPECT_NEAR((lev.level(0) + lev.level(1)) / 2, 1.0, 1e-9); // normalised to a mean of 1
+    EXPECT_LT(std::abs(lev.fit.coefficient("const")), 0.05 * 12e-9 * 80e3);
+    EXPECT_EQ(lev.level(7), 1.0); // an unseen setup: the average level
+    // Twice the dam break's work is predicted at twice the time, as it would be measured.
+    const std::vector<double> x2{160e3, 1.0};
+    EXPECT_NEAR(lev.predict(x2, 0), 1.2 * 12e-9 * 160e3, 0.05 * 1.2 * 12e-9 * 160e3);
+    // One class, or none: ordinary least squares.
+    const LevelledFit one = fit_levelled(d.with_const, d.y, {"interactions", "const"}, {});
+    EXPECT_DOUBLE_EQ(one.fit.coefficient("const"), pooled.coefficient("const"));
+    EXPECT_THROW(fit_levelled(d.with_const, d.y, {"i", "c"}, std::vector<int>{0, 1}),
+                 std::invalid_argument);
+}
+
+TEST(Fit, LevelledCrossValidationDoesNotBuyTheConstant) {
+    const TwoSetups d = two_setups();
+    // Pooled, the constant wins the cross-validation by far ...
+    const CvScore pooled_with = cross_validate_score(d.with_const, d.y, d.runs);
+    const CvScore pooled_without = cross_validate_score(d.without_const, d.y, d.runs);
+    EXPECT_LT(pooled_with.rmse, 0.8 * pooled_without.rmse);
+    // ... levelled, the proportional cost is within one standard error of it (the rule keeps
+    // the smaller set), and both score at the noise.
+    const CvScore with = cross_validate_score(d.with_const, d.y, d.runs, d.setups);
+    const CvScore without = cross_validate_score(d.without_const, d.y, d.runs, d.setups);
+    EXPECT_LE(without.rmse, with.rmse + with.rmse_se);
+    EXPECT_GT(with.rmse_se, 0.0);
+    EXPECT_LT(without.rmse, 0.6 * pooled_without.rmse);
+    EXPECT_DOUBLE_EQ(cross_validate(d.without_const, d.y, d.runs, d.setups), without.rmse);
+}
+
 TEST(Fit, RunLevelIsTheMedianRunsAndIgnoresOneSlowRun) {
     // Five runs of 60 ns per interaction (2 % noise); one of them measured 35 % slow, with the
     // largest work so it has the leverage. Least squares is pulled up, the median run level is not.

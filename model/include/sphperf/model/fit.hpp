@@ -4,6 +4,7 @@
 // leave-one-group-out cross-validation for choosing the terms of a cost model by evidence.
 #include <nlohmann/json.hpp>
 
+#include <map>
 #include <span>
 #include <string>
 #include <vector>
@@ -32,17 +33,43 @@ LinearFit fit_linear(const std::vector<std::vector<double>> &X, std::span<const 
 // The thesis' p(n) = m n + r.
 LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y);
 
+// Least squares with one multiplicative level per class of rows: y = level[class] (X beta).
+// The classes are the setups: an interaction of the dam break costs more than one of the still
+// tank at the same counts (its flow, its free surface), and a plain fit pooling both lets a
+// term that merely tells the setups apart (a constant, cell moves, walls) absorb that
+// difference, then extrapolate it with the scale. Alternating least squares; the levels are
+// normalised to a mean of 1, so `fit` is the cost at the classes' average level. An empty
+// `classes`, or a single class, is ordinary least squares.
+struct LevelledFit {
+    LinearFit fit;
+    std::map<int, double> levels; // class -> level
+    double level(int cls) const;  // 1 for a class the fit has not seen
+    double predict(std::span<const double> x, int cls) const { return level(cls) * fit.predict(x); }
+};
+LevelledFit fit_levelled(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                         std::vector<std::string> terms, std::span<const int> classes);
+
 // Root mean square of the held-out residuals when each group (a calibration run) is left out in
-// turn and predicted by a fit to the others. With a single group, 5 interleaved folds instead.
+// turn and predicted by a levelled fit to the others (the held-out run at its class's level, as
+// predict applies it). With a single group, 5 interleaved folds instead.
 double cross_validate(const std::vector<std::vector<double>> &X, std::span<const double> y,
-                      std::span<const int> groups);
+                      std::span<const int> groups, std::span<const int> classes = {});
+
+// The same score with its standard error: the spread of the folds' mean square errors over the
+// root of their count, carried to the root mean square (delta method). The one-standard-error
+// rule picks the smallest set of terms whose score is within one standard error of the best.
+struct CvScore {
+    double rmse = 0, rmse_se = 0;
+};
+CvScore cross_validate_score(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                             std::span<const int> groups, std::span<const int> classes = {});
 
 // What a prediction is judged on: each run (group) left out in turn, its summed time predicted
 // by a fit to the others; the root mean square over runs of the relative error of that sum.
 // Unlike cross_validate, a run of small per-step times counts as much as one of large ones, so a
 // term that only matters when the work is extrapolated (to another scale) shows. Needs >= 2 runs.
 double cross_validate_runs(const std::vector<std::vector<double>> &X, std::span<const double> y,
-                           std::span<const int> groups);
+                           std::span<const int> groups, std::span<const int> classes = {});
 
 // Run-to-run machine speed: each group's (calibration run's) measured sum over the fit's
 // predicted sum. A machine that slows down for minutes (measured here: 35 % for two whole runs)

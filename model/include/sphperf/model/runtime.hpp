@@ -58,8 +58,15 @@ struct RankWork {
 // coefficients at the setup's own run level when the calibration ran that setup.
 LinearFit compute_cost_of(const nlohmann::json &entry, const std::string &setup);
 
+// How the compute cost's terms are chosen (model/README.md, "Choosing the cost terms").
+//   levelled_one_se: one cost level per setup in the fit and in its cross-validation, and the
+//     smallest set of terms within one standard error of the best held-out score (session 13);
+//   pooled_one_percent: one fit pooling the setups, a term kept when it lowers the held-out
+//     error by 1 % (sessions 9-12), kept to report beside it.
+enum class TermSelection { levelled_one_se, pooled_one_percent };
 struct CalibrateOptions {
     bool allow_other_host = false;
+    TermSelection term_selection = TermSelection::levelled_one_se;
 };
 nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
