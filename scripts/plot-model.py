@@ -255,7 +255,7 @@ def markdown(model, validation, args, out):
             o = load(other)["summary"]["wall_abs_error"]
             lines.append(f"Compute-cost terms chosen by levelled-one-se (a cost level per setup, the smallest "
                          f"set within one standard error of the best cross-validation score), a rule picked in "
-                         f"session 13 after comparing four rules on three main jobs' runs: **tuned** against "
+                         f"session 13 after comparing six rules on three main jobs' runs: **tuned** against "
                          f"validation data. Untuned, the previous rule (pooled-one-percent) on the same runs: "
                          f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
                          f"(pooled-one-percent/validation.json).")
