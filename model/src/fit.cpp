@@ -134,38 +134,57 @@ LevelledFit fit_levelled(const std::vector<std::vector<double>> &X, std::span<co
     out.fit = fit_linear(X, y, terms);
     if (distinct.size() < 2)
         return out;
-    for (int c : distinct)
-        out.levels[c] = 1.0;
-    constexpr int max_sweeps = 200;
-    constexpr double tolerance = 1e-10;
-    std::vector<std::vector<double>> Xs = X;
-    for (int sweep = 0; sweep < max_sweeps; ++sweep) {
-        // Levels for the current shape: per class, the least-squares scale of X beta onto y.
-        std::map<int, std::pair<double, double>> sums;
+    // Gauss-Newton on (beta, the levels of all classes but the first, whose level stays 1):
+    // the residual y - level X beta is bilinear, so it converges in a few steps where
+    // alternating the two least-squares problems crawls along the constant-level valley.
+    const std::vector<int> cls(distinct.begin(), distinct.end());
+    std::map<int, double> level;
+    for (int c : cls)
+        level[c] = 1.0;
+    std::vector<double> beta = out.fit.coef;
+    const std::size_t p = beta.size();
+    std::vector<std::string> names(p + cls.size() - 1, "d");
+    constexpr int max_steps = 100;
+    constexpr double tolerance = 1e-12;
+    std::vector<std::vector<double>> J(X.size(), std::vector<double>(names.size()));
+    std::vector<double> r(X.size());
+    for (int step = 0; step < max_steps; ++step) {
         for (std::size_t i = 0; i < X.size(); ++i) {
-            const double p = out.fit.predict(X[i]);
-            sums[classes[i]].first += y[i] * p;
-            sums[classes[i]].second += p * p;
+            double xb = 0;
+            for (std::size_t k = 0; k < p; ++k)
+                xb += X[i][k] * beta[k];
+            const double l = level[classes[i]];
+            r[i] = y[i] - l * xb;
+            for (std::size_t k = 0; k < p; ++k)
+                J[i][k] = l * X[i][k];
+            for (std::size_t c = 1; c < cls.size(); ++c)
+                J[i][p + c - 1] = classes[i] == cls[c] ? xb : 0.0;
         }
-        double mean = 0, change = 0;
-        std::map<int, double> next;
-        for (const auto &[c, s] : sums) {
-            next[c] = s.second > 0 ? s.first / s.second : 1.0;
-            mean += next[c] / static_cast<double>(sums.size());
+        const LinearFit d = fit_linear(J, r, names);
+        double change = 0;
+        for (std::size_t k = 0; k < p; ++k) {
+            beta[k] += d.coef[k];
+            change = std::max(change, std::abs(d.coef[k]) / std::max(std::abs(beta[k]), 1e-300));
         }
-        for (auto &[c, v] : next) {
-            v /= mean;
-            change = std::max(change, std::abs(v - out.levels[c]));
+        for (std::size_t c = 1; c < cls.size(); ++c) {
+            level[cls[c]] += d.coef[p + c - 1];
+            change = std::max(change, std::abs(d.coef[p + c - 1]) / std::abs(level[cls[c]]));
         }
-        out.levels = next;
-        // The shape for the current levels: y regressed on level[class] X.
-        for (std::size_t i = 0; i < X.size(); ++i)
-            for (std::size_t k = 0; k < X[i].size(); ++k)
-                Xs[i][k] = out.levels[classes[i]] * X[i][k];
-        out.fit = fit_linear(Xs, y, terms);
         if (change < tolerance)
             break;
     }
+    // Normalised to a mean level of 1; the shape refitted at those levels carries the
+    // standard errors (given the levels).
+    double mean = 0;
+    for (int c : cls)
+        mean += level[c] / static_cast<double>(cls.size());
+    for (int c : cls)
+        out.levels[c] = level[c] / mean;
+    std::vector<std::vector<double>> Xs = X;
+    for (std::size_t i = 0; i < X.size(); ++i)
+        for (auto &v : Xs[i])
+            v *= out.levels[classes[i]];
+    out.fit = fit_linear(Xs, y, terms);
     return out;
 }
 
