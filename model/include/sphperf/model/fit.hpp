@@ -37,7 +37,7 @@ LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y);
 // The classes are the setups: an interaction of the dam break costs more than one of the still
 // tank at the same counts (its flow, its free surface), and a plain fit pooling both lets a
 // term that merely tells the setups apart (a constant, cell moves, walls) absorb that
-// difference, then extrapolate it with the scale. Alternating least squares; the levels are
+// difference, then extrapolate it with the scale. Gauss-Newton; the levels are
 // normalised to a mean of 1, so `fit` is the cost at the classes' average level. An empty
 // `classes`, or a single class, is ordinary least squares.
 struct LevelledFit {
