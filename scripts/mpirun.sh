@@ -3,7 +3,8 @@
 #   scripts/mpirun.sh -n RANKS [-t THREADS] PROGRAM [ARGS...]
 # THREADS (OpenMP threads per rank; default OMP_NUM_THREADS, else 1) is exported as
 # OMP_NUM_THREADS and each rank is bound to that many cores, when RANKS x THREADS fit the
-# cores; otherwise ranks are not bound and --oversubscribe is added. --allow-run-as-root is
+# cores; above them --oversubscribe is added and one-thread ranks are bound round-robin to the
+# cores (rank r on core r mod cores), ranks of more threads not at all. --allow-run-as-root is
 # added when run as root. Inside a Slurm allocation (SLURM_JOB_ID) it runs srun --mpi=pmix
 # with --cpus-per-task=THREADS and core binding instead (when srun offers PMIx). mpirun's own
 # multi-line notices are silenced (--quiet) so a program's one-line error stays one line; set
@@ -42,8 +43,13 @@ if [ -n "${SLURM_JOB_ID:-}" ] && [ "${SPHPERF_NO_SRUN:-0}" != 1 ] && command -v 
     allocated=${allocated:-0}
     if [ "${SLURM_JOB_NUM_NODES:-1}" -eq 1 ] && [ "$allocated" -gt 0 ] &&
         [ $((ranks * threads)) -gt "$allocated" ]; then
-        # More processes x threads than the allocation's cores: time-share them, unbound.
+        # More processes x threads than the allocation's cores: time-share them, one-thread
+        # ranks bound round-robin to the allocation's CPUs as mpirun binds them below.
         srun_flags=(--mpi=pmix -n "$ranks" --overcommit --cpu-bind=none)
+        if [ "$threads" -eq 1 ]; then
+            cpus=$(python3 -c 'import os; print(",".join(map(str, sorted(os.sched_getaffinity(0)))))')
+            srun_flags=(--mpi=pmix -n "$ranks" --overcommit --cpu-bind="map_cpu:$cpus")
+        fi
         # Open MPI cannot tell it is oversubscribed under srun (mpirun's --oversubscribe tells
         # it): without this its ranks spin while they wait and starve the rank they wait for.
         export OMPI_MCA_mpi_yield_when_idle=1
@@ -62,7 +68,14 @@ fi
 if [ "$(id -u)" -eq 0 ]; then
     flags+=(--allow-run-as-root)
 fi
-if [ $((ranks * threads)) -gt "$cores" ]; then
+if [ $((ranks * threads)) -gt "$cores" ] && [ "$threads" -eq 1 ]; then
+    # Above the cores one-thread ranks are bound round-robin (rank r on core r mod cores): left
+    # to the scheduler, two busy neighbours shared a core in some runs and not in others (the
+    # 4-rank dam break took 3.4-6.1 s unbound, 3.4-4.1 s bound; model/README.md), and the model
+    # predicts where they are.
+    flags+=(--oversubscribe --map-by core --bind-to core:overload-allowed)
+    export OMPI_MCA_mpi_yield_when_idle=1 # a waiting rank gives its core to the one it waits for
+elif [ $((ranks * threads)) -gt "$cores" ]; then
     flags+=(--oversubscribe --bind-to none)
 else
     flags+=(--map-by "slot:PE=$threads" --bind-to core)

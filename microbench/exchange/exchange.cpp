@@ -242,10 +242,11 @@ double calibrate(Work &work, int rank) {
 }
 
 nlohmann::json point_json(const Point &p, int size, int cores) {
-    // Time-sharing: R ranks on C cores need at least R/C x the work's time alone per round;
-    // the overhead is the measured round over that bound (context switches, ranks waiting for
-    // a descheduled neighbour, the shift itself).
-    const double share = std::max(1.0, static_cast<double>(size) / cores);
+    // Time-sharing: R ranks on C cores need at least ceil(R/C) x the work's time alone per
+    // round (the busiest core serves that many, bound round-robin by scripts/mpirun.sh or
+    // placed by the scheduler); the overhead is the measured round over that bound (context
+    // switches, ranks waiting for a descheduled neighbour, the shift itself).
+    const double share = std::max(1.0, std::ceil(static_cast<double>(size) / cores));
     const double ideal = p.gap_work_us * 1e-6 * share;
     return {
         {"gap_work_us", p.gap_work_us},

@@ -3,6 +3,7 @@
 #include "sphperf/cli.hpp"
 #include "sphperf/model/jitter.hpp"
 #include "sphperf/model/memory.hpp"
+#include "sphperf/model/placement.hpp"
 #include "sphperf/model/runtime.hpp"
 #include "sphperf/stats.hpp"
 
@@ -457,12 +458,13 @@ json memory_model(const std::vector<SphRun> &runs) {
             {"grids", grids},
             {"fixed_bytes", fixed.empty() ? 0.0 : fixed[fixed.size() / 2]}};
 }
-// Above the core count ranks take turns, and a step costs more than the summed compute per
-// core (switches, a rank waiting for a descheduled neighbour). Measured on the app itself, per
-// load (ranks x threads / cores): over the intervals where that bound exceeds the slowest
-// rank's compute (all ranks busy), the measured interval time (the longest rank's timers:
-// every step ends in a blocking exchange) over the bound, with each rank's compute predicted
-// by the fit (the fit's level, not the run's time-shared timers).
+// Above the core count ranks take turns, and a core serving two busy ranks costs a little more
+// than their summed compute (switches, a rank waiting for a descheduled neighbour). Measured on
+// the app itself, per load (ranks x threads / cores): over the intervals where some core serves
+// two or more busy ranks (where the run placed them, `placement_pus`; spread evenly when
+// unbound), the measured interval time (the longest rank's timers: every step ends in a
+// blocking exchange) over the busiest core's summed compute, each rank's compute predicted by
+// the fit (the fit's level, not the run's time-shared timers).
 json time_sharing(const std::vector<SphRun> &runs, const json &compute, int cores) {
     std::map<double, std::vector<std::pair<std::string, double>>> by_load;
     for (const auto &r : runs) {
@@ -472,23 +474,27 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
         if (!entry)
             continue;
         const LinearFit f = compute_cost_of(*entry, r.config.setup);
+        std::vector<int> pus = r.placement_pus;
+        if (pus.size() != static_cast<std::size_t>(r.config.ranks))
+            pus.assign(static_cast<std::size_t>(r.config.ranks), -1);
         double bound = 0, measured = 0;
         for (const auto &iv : r.intervals) {
-            double steps = 0, demand = 0, slowest = 0, longest = 0;
+            double steps = 0, longest = 0;
             const std::vector<double> fitted = fitted_compute(f, iv);
-            for (std::size_t k = 0; k < iv.ranks.size(); ++k) {
-                const auto &rk = iv.ranks[k];
-                const double c = fitted[k];
-                demand += c * r.config.threads;
-                slowest = std::max(slowest, c);
+            std::vector<double> field;
+            for (const auto &rk : iv.ranks) {
+                field.push_back(rk.field_mean);
                 steps = std::max(steps, rk.steps);
                 double timers = 0;
                 for (const auto &[name, v] : rk.timers)
                     timers += v;
                 longest = std::max(longest, timers);
             }
-            if (demand / cores > slowest) {
-                bound += steps * demand / cores;
+            if (pus.size() != fitted.size())
+                continue;
+            const SharedStep s = time_shared_step(fitted, field, pus, r.config.threads, cores);
+            if (s.shared_core) {
+                bound += steps * s.step_s;
                 measured += longest;
             }
         }
@@ -515,8 +521,9 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
                        {"uses", "median"},
                        {"runs", per_run},
                        {"method", "median over the time-shared calibration runs at this load of "
-                                  "measured time / (summed predicted compute per core), over "
-                                  "the intervals where that bound exceeds the slowest rank"}});
+                                  "measured time / the busiest core's summed predicted compute "
+                                  "(ranks where the run placed them), over the intervals where "
+                                  "a core serves two or more busy ranks"}});
     }
     return out;
 }

@@ -3,6 +3,7 @@
 // idle ranks, and time-sharing when ranks x threads exceed the cores.
 #include "sphperf/cli.hpp"
 #include "sphperf/model/jitter.hpp"
+#include "sphperf/model/placement.hpp"
 #include "sphperf/model/runtime.hpp"
 
 #include "sphperf/sph/balance.hpp"
@@ -141,7 +142,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     const bool shared = P * threads > c.cores;
     auto pu = [&](int r) { return shared || r < 0 || r >= P ? -1 : r * threads; };
     std::vector<RankStep> out(static_cast<std::size_t>(P));
-    double slowest = 0, demand = 0;
+    std::vector<double> compute, field;
     for (int r = 0; r < P; ++r) {
         const SlabLoad &l = loads[static_cast<std::size_t>(r)];
         RankStep &s = out[static_cast<std::size_t>(r)];
@@ -168,13 +169,15 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         for (const auto &t : c.compute.terms)
             x.push_back(w.value(t));
         s.compute_s = std::max(0.0, c.compute.predict(x));
-        slowest = std::max(slowest, s.compute_s);
-        demand += s.compute_s * threads;
+        compute.push_back(s.compute_s);
+        field.push_back(s.field);
     }
     // The compute that precedes each of the three shifts of a step: on this kind of machine
     // it decides what a shift costs (exchange benchmark). Above the core count the ranks
-    // take turns, so a step spans at least the summed demand per core.
-    const double busy = shared ? std::max(slowest, demand / c.cores) : slowest;
+    // take turns where the launcher put them, so a step spans at least the busiest core's.
+    const std::vector<int> placed = launcher_placement(P, threads, c.cores);
+    const double busy = shared ? time_shared_step(compute, field, placed, threads, c.cores).step_s
+                               : *std::max_element(compute.begin(), compute.end());
     const double gap = busy / shifts_per_step;
     const ExchangeSet *set =
         c.exchange.empty() ? nullptr : &c.exchange.set_for(P, threads, c.cores);
@@ -212,13 +215,15 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         sd.push_back(c.jitter * s.compute_s);
     }
     const double longest = expected_max(mean, sd);
-    // The exchanges are blocking: every rank's step lasts as long as the slowest. Time-sharing
-    // costs more than the demand per core (switches, ranks waiting for a descheduled
-    // neighbour): the exchange benchmark's round overhead at this rank count and gap.
-    // Above the cores a rank waiting in a shift is descheduled and the others compute: the
-    // shifts' cost is inside the time-sharing bound, not added to it.
+    // The exchanges are blocking: every rank's step lasts as long as the slowest. A core that
+    // serves two busy ranks costs a little more than their summed compute (switches, a rank
+    // waiting for a descheduled neighbour): the overhead the app's own time-shared calibration
+    // runs measured at this load, else the exchange benchmark's round overhead. Above the cores
+    // a rank waiting in a shift is descheduled and the others compute: the shifts' cost is
+    // inside the time-sharing bound, not added to it.
     const double overhead = sharing_overhead(c, P * threads, set, gap).first;
-    step_s = shared ? std::max(slowest, demand / c.cores * overhead) : longest;
+    step_s = shared ? time_shared_step(compute, field, placed, threads, c.cores, overhead).step_s
+                    : longest;
     for (auto &s : out) {
         s.wait_s = std::max(0.0, step_s - s.compute_s - s.comm_s);
         s.idle_s = s.field > 0 ? 0.0 : step_s;
@@ -486,6 +491,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  {"memory", memory},
                  {"threads", req.threads},
                  {"oversubscribed", P * req.threads > c.cores},
+                 {"placement_pus", launcher_placement(P, req.threads, c.cores)},
                  {"time_sharing_source",
                   sharing_overhead(
                       c, P * req.threads,

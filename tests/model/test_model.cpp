@@ -2,6 +2,7 @@
 // rescaling, Hockney piece selection, and validation flagging a planted error.
 #include "sphperf/cli.hpp"
 #include "sphperf/model/jitter.hpp"
+#include "sphperf/model/placement.hpp"
 #include "sphperf/model/runtime.hpp"
 
 #include <gtest/gtest.h>
@@ -425,6 +426,43 @@ nlohmann::json two_piece_profile() {
         {"hockney", {{"pairs", {pair}}, {"classes", {{"same_l3", fit}, {"other_node", slow}}}}}};
 }
 } // namespace
+
+TEST(Placement, RanksGoWhereTheLauncherBindsThem) {
+    // Within the cores each rank on its own cores; above them one-thread ranks round-robin,
+    // ranks of more threads unbound.
+    EXPECT_EQ(launcher_placement(2, 1, 2), (std::vector<int>{0, 1}));
+    EXPECT_EQ(launcher_placement(1, 2, 2), (std::vector<int>{0}));
+    EXPECT_EQ(launcher_placement(2, 2, 4), (std::vector<int>{0, 2}));
+    EXPECT_EQ(launcher_placement(4, 1, 2), (std::vector<int>{0, 1, 0, 1}));
+    EXPECT_EQ(launcher_placement(3, 1, 2), (std::vector<int>{0, 1, 0}));
+    EXPECT_EQ(launcher_placement(2, 2, 2), (std::vector<int>{-1, -1}));
+    EXPECT_THROW(launcher_placement(0, 1, 2), std::invalid_argument);
+}
+
+TEST(Placement, TimeSharedStepIsTheBusiestCore) {
+    // The 4-rank dam break early on: ranks 0 and 1 hold water, 2 and 3 are idle. Bound
+    // round-robin the busy ranks are on different cores: the step is rank 0's compute with its
+    // idle core-mate's, and no overhead (its core serves one busy rank).
+    const std::vector<double> c{3.0, 1.5, 0.01, 0.02}, field{100, 50, 0, 0};
+    const auto bound = time_shared_step(c, field, launcher_placement(4, 1, 2), 1, 2, 1.3);
+    EXPECT_DOUBLE_EQ(bound.step_s, 3.01);
+    EXPECT_FALSE(bound.shared_core);
+    // The still tank on 3 ranks: ranks 0 and 2 share core 0, which sets the step with the
+    // overhead; rank 1's core does not. Unbound, the summed compute is spread over both cores.
+    const std::vector<double> s{1.0, 1.1, 0.9}, f3{10, 10, 10};
+    const auto three = time_shared_step(s, f3, launcher_placement(3, 1, 2), 1, 2, 1.1);
+    EXPECT_NEAR(three.step_s, 1.9 * 1.1, 1e-12);
+    EXPECT_TRUE(three.shared_core);
+    const std::vector<int> unbound(3, -1);
+    const auto spread = time_shared_step(s, f3, unbound, 1, 2, 1.1);
+    EXPECT_NEAR(spread.step_s, 3.0 / 2 * 1.1, 1e-12);
+    EXPECT_TRUE(spread.shared_core);
+    // Unbound and one rank slower than the spread demand: the slowest rank, no overhead.
+    const auto lone = time_shared_step(c, field, std::vector<int>(4, -1), 1, 2, 1.3);
+    EXPECT_DOUBLE_EQ(lone.step_s, 3.0);
+    EXPECT_FALSE(lone.shared_core);
+    EXPECT_THROW(time_shared_step(s, field, unbound, 1, 2), std::invalid_argument);
+}
 
 TEST(Comm, EachMessageIsCostedWithItsOwnPiece) {
     const CommModel m = CommModel::from_profile(two_piece_profile());

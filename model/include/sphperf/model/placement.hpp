@@ -1,0 +1,32 @@
+#pragma once
+// Where the launcher puts the ranks, and what a step costs when they take turns on the cores.
+// Above the cores scripts/mpirun.sh binds one-thread ranks round-robin (rank r on core r mod C).
+// Unbound, the scheduler paired the two busy ranks of the 4-rank dam break on one core in some
+// runs and not in others: 3.4-6.1 s over 12 runs, 3.4-4.1 s over 11 runs bound (model/README.md,
+// "Time-sharing"). A core serves its ranks' compute one after the other (their phases are
+// shorter than a scheduler slice), so a step lasts at least the busiest core's summed compute.
+#include <span>
+#include <vector>
+
+namespace sphperf::model {
+
+// The first processing unit of each rank as scripts/mpirun.sh launches RANKS x THREADS on CORES
+// cores: r x threads within the cores; r mod cores above them with one thread per rank; -1
+// (unbound, placed by the scheduler) above them with more threads per rank.
+std::vector<int> launcher_placement(int ranks, int threads, int cores);
+
+struct SharedStep {
+    double step_s = 0;        // compute per step of the busiest core, overhead included
+    bool shared_core = false; // some core serves two or more busy ranks (the overhead applies)
+};
+// A time-shared step from each rank's compute per step and field particles (a rank without any
+// is idle: it polls, yielding its core, and is not counted as busy). Bound ranks
+// (every pu >= 0): per processing unit the summed compute, times `overhead` where that unit
+// serves two or more busy ranks; the step lasts the busiest unit's. Unbound (any pu < 0): the
+// summed compute x threads spread evenly over the cores, times `overhead`, and at least the
+// slowest rank's. Throws std::invalid_argument on spans of different lengths.
+SharedStep time_shared_step(std::span<const double> compute_s, std::span<const double> field,
+                            std::span<const int> pus, int threads, int cores,
+                            double overhead = 1.0);
+
+} // namespace sphperf::model
