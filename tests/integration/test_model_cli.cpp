@@ -2,6 +2,7 @@
 // against a real 3-rank run; and bad input (exit 2, one line, no file).
 #include "run.hpp"
 
+#include "sphperf/model/placement.hpp"
 #include "sphperf/model/workload.hpp"
 
 #include <gtest/gtest.h>
@@ -93,6 +94,13 @@ TEST(ModelCli, CalibratePredictValidate) {
     EXPECT_DOUBLE_EQ(ts["overhead_mean"].get<double>(), ts["runs"][0]["overhead"].get<double>());
     EXPECT_DOUBLE_EQ(ts["overhead_min"].get<double>(), ts["overhead_max"].get<double>());
     EXPECT_EQ(ts["uses"].get<std::string>(), "median");
+    // The launcher put the time-shared ranks where the model assumes they are (round-robin
+    // over the cores above them, each on its own core within them).
+    const sphperf::testing::Run nproc = run("nproc");
+    ASSERT_EQ(nproc.code, 0);
+    const int cores = std::stoi(nproc.out);
+    EXPECT_EQ(load(f.still3)["placement_pus"].get<std::vector<int>>(),
+              sphperf::model::launcher_placement(3, 1, cores));
     const auto pred = f.dir / "pred.json";
     sphperf::testing::Run r =
         run(bin("sphmodel") + " predict --model " + f.model.string() +
@@ -104,6 +112,9 @@ TEST(ModelCli, CalibratePredictValidate) {
     for (const auto &c : p["configurations"]) {
         EXPECT_GT(c["wall_s"].get<double>(), 0);
         EXPECT_EQ(c["intervals"].size(), 6u);
+        EXPECT_EQ(c["placement_pus"].get<std::vector<int>>(),
+                  sphperf::model::launcher_placement(c["ranks"].get<int>(), 1,
+                                                     p["request"]["cores"].get<int>()));
         EXPECT_EQ(c["time_sharing_source"].get<std::string>(), c["ranks"].get<int>() == 3
                                                                    ? "time-shared calibration run"
                                                                    : "none (within the cores)");
