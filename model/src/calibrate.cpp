@@ -474,9 +474,6 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
         if (!entry)
             continue;
         const LinearFit f = compute_cost_of(*entry, r.config.setup);
-        std::vector<int> pus = r.placement_pus;
-        if (pus.size() != static_cast<std::size_t>(r.config.ranks))
-            pus.assign(static_cast<std::size_t>(r.config.ranks), -1);
         double bound = 0, measured = 0;
         for (const auto &iv : r.intervals) {
             double steps = 0, longest = 0;
@@ -490,9 +487,8 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
                     timers += v;
                 longest = std::max(longest, timers);
             }
-            if (pus.size() != fitted.size())
-                continue;
-            const SharedStep s = time_shared_step(fitted, field, pus, r.config.threads, cores);
+            const SharedStep s =
+                time_shared_step(fitted, field, r.placement_pus, r.config.threads, cores);
             if (s.shared_core) {
                 bound += steps * s.step_s;
                 measured += longest;

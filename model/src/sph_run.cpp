@@ -132,6 +132,9 @@ SphRun load_sph_run(const std::filesystem::path &path) {
     if (r.initial_columns.size() != cols || r.wall_columns.size() != cols)
         bad("column histograms do not have config/cell_columns = " + std::to_string(cols) +
             " entries");
+    if (r.placement_pus.size() != static_cast<std::size_t>(r.config.ranks))
+        bad("placement_pus has " + std::to_string(r.placement_pus.size()) +
+            " entries, expected config/ranks = " + std::to_string(r.config.ranks));
     for (const auto &iv : r.intervals) {
         if (iv.columns.size() != cols)
             bad("interval at step " + std::to_string(iv.step) + " has " +
