@@ -79,7 +79,19 @@ TEST(ModelCli, CalibratePredictValidate) {
         EXPECT_TRUE(m.contains(nlohmann::json::json_pointer(p))) << p;
     // The time-shared 3-rank runs set the time-sharing overhead, not the compute cost; the
     // dam break's (one busy rank) never reaches the bound, the still tank's does.
+    // A rank without field particles is idle in the model: its rank-intervals are not points
+    // of the cost fit (the 2-rank dam break's second rank holds no water in 60 steps).
+    int busy = 0, idle = 0;
+    for (const auto &path : {f.run1, f.run2}) {
+        const auto report = load(path);
+        for (const auto &iv : report["intervals"])
+            for (const auto &rk : iv["ranks"])
+                if (rk["steps"].get<double>() >= 1)
+                    ++(rk["field"].get<double>() > 0 ? busy : idle);
+    }
+    EXPECT_GT(idle, 0);
     for (const auto &c : m["compute"]) {
+        EXPECT_EQ(c["points"].get<int>(), busy) << c["grid"];
         EXPECT_EQ(c["runs"].get<int>(), 2) << c["grid"];
         EXPECT_TRUE(c.contains(nlohmann::json::json_pointer("/run_level/per_setup/dambreak")));
     }
