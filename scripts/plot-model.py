@@ -216,12 +216,16 @@ def markdown(model, validation, args, out):
                      f"{t.get('overhead_max', float('nan')):.2f}). Other loads use the exchange benchmark's.")
     j = model.get("jitter")
     if j:
-        runs = ", ".join(f"{r['sigma']:.3f}" for r in j["runs"])
-        lines.append(f"Step-to-step jitter (relative standard deviation of a rank's compute per step, "
-                     f"from the calibration runs within the cores whose ranks are all busy): {runs}; the "
-                     f"model takes the median, {j['sigma']:.3f} (mean {j['sigma_mean']:.3f}, spread "
-                     f"{j['sigma_min']:.3f}-{j['sigma_max']:.3f}). Within the cores a step lasts the expected "
-                     f"maximum of the ranks' compute + communication.")
+        runs = ", ".join(f"{r['k_sqrt_s']:.4f} ({100 * r['relative_sd_at_run']:.0f} % of "
+                         f"{1e3 * r['compute_per_step_s']:.2f} ms)" for r in j["runs"])
+        lines.append(f"Step-to-step jitter (standard deviation of a rank's compute per step k sqrt(compute), "
+                     f"from the calibration runs within the cores whose ranks are all busy; k in s^0.5, "
+                     f"beside it the relative deviation at the run's own step): {runs}; the model takes "
+                     f"the median, k = {j['k_sqrt_s']:.4f} (mean {j['k_mean_sqrt_s']:.4f}, spread "
+                     f"{j['k_min_sqrt_s']:.4f}-{j['k_max_sqrt_s']:.4f}). Within the cores a step lasts the "
+                     f"expected maximum of the ranks' compute + communication. The square-root form was chosen in "
+                     f"session 15 after comparing the predicted waits with sessions 13 and 14's validation runs "
+                     f"(**tuned**; the proportional form's figures on those runs are in model/README.md).")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
                  "compute | comm | wait | idle | pairs | pairs (regression) | exports (edge) | "

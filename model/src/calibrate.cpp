@@ -524,14 +524,14 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
     return out;
 }
 // Step-to-step jitter, from the runs within the cores whose ranks all hold field particles:
-// the relative standard deviation sigma of each rank's compute per step for which the model's
-// wait (every step lasts the expected maximum of the ranks' compute + communication) equals
-// the measured wait. Each rank's compute is the fitted one at the run's own level (measured over
-// fitted), so sigma also covers imbalance the model cannot foresee (two cores at different
-// speeds), and the communication is the measured one (validated apart).
+// the k of a rank's compute noise per step, standard deviation k sqrt(compute) (jitter.hpp), for
+// which the model's wait (every step lasts the expected maximum of the ranks' compute +
+// communication) equals the measured wait. Each rank's compute is the fitted one at the run's
+// own level (measured over fitted), so k also covers imbalance the model cannot foresee (two
+// cores at different speeds), and the communication is the measured one (validated apart).
 json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
     json per_run = json::array();
-    std::vector<double> sigmas;
+    std::vector<double> ks;
     for (const auto &r : runs) {
         const json *entry = compute_entry(compute, r);
         if (time_shared(r, cores) || r.config.ranks < 2 || !entry)
@@ -558,31 +558,36 @@ json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
         }
         if (busy.empty() || !(fitted_sum > 0))
             continue;
-        // The fitted compute at this run's own level: sigma is jitter, not the machine's drift.
+        // The fitted compute at this run's own level: k is jitter, not the machine's drift.
         for (auto &b : busy)
             for (auto &c : b.compute_s)
                 c *= measured_compute / fitted_sum;
-        const double sigma = fit_jitter(busy, measured_wait);
-        sigmas.push_back(sigma);
+        const double k = fit_jitter(busy, measured_wait);
+        const double mean_compute =
+            measured_compute / (steps * static_cast<double>(r.config.ranks));
+        ks.push_back(k);
         per_run.push_back({{"run", r.path},
-                           {"sigma", sigma},
-                           {"at_bound", sigma >= jitter_sigma_max},
+                           {"k_sqrt_s", k},
+                           {"at_bound", k >= jitter_k_max_sqrt_s},
+                           {"compute_per_step_s", mean_compute},
+                           {"relative_sd_at_run", jitter_sd(k, mean_compute) / mean_compute},
                            {"measured_wait_s", measured_wait},
                            {"modelled_wait_without_jitter_s", modelled_wait(busy, 0)},
                            {"busy_steps", steps}});
     }
-    if (sigmas.empty())
+    if (ks.empty())
         return nullptr;
-    const Summary s = sphperf::summarize(sigmas);
-    return {{"sigma", s.median},
-            {"sigma_mean", s.avg},
-            {"sigma_min", s.min},
-            {"sigma_max", s.max},
+    const Summary s = sphperf::summarize(ks);
+    return {{"k_sqrt_s", s.median},
+            {"k_mean_sqrt_s", s.avg},
+            {"k_min_sqrt_s", s.min},
+            {"k_max_sqrt_s", s.max},
             {"uses", "median"},
+            {"form", "standard deviation of a rank's compute per step = k sqrt(compute_s)"},
             {"runs", per_run},
-            {"method", "per run within the cores with every rank busy: the relative standard "
-                       "deviation of a rank's compute per step for which the expected maximum "
-                       "over ranks reproduces the measured wait; the median over runs"}};
+            {"method", "per run within the cores with every rank busy: the k for which the "
+                       "expected maximum over ranks reproduces the measured wait; the median over "
+                       "runs"}};
 }
 } // namespace
 

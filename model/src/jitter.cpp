@@ -76,7 +76,7 @@ double expected_max(std::span<const double> mean, std::span<const double> sd) {
     return lo + area;
 }
 
-double modelled_wait(std::span<const BusyInterval> intervals, double sigma) {
+double modelled_wait(std::span<const BusyInterval> intervals, double k_sqrt_s) {
     double wait = 0;
     std::vector<double> mean, sd;
     for (const auto &iv : intervals) {
@@ -84,7 +84,7 @@ double modelled_wait(std::span<const BusyInterval> intervals, double sigma) {
         sd.clear();
         for (std::size_t k = 0; k < iv.compute_s.size(); ++k) {
             mean.push_back(iv.compute_s[k] + iv.comm_s.at(k));
-            sd.push_back(sigma * iv.compute_s[k]);
+            sd.push_back(jitter_sd(k_sqrt_s, iv.compute_s[k]));
         }
         const double step = expected_max(mean, sd);
         for (double m : mean)
@@ -94,13 +94,13 @@ double modelled_wait(std::span<const BusyInterval> intervals, double sigma) {
 }
 
 double fit_jitter(std::span<const BusyInterval> intervals, double measured_wait_s) {
-    // The modelled wait grows with sigma: bisection.
+    // The modelled wait grows with k: bisection.
     if (modelled_wait(intervals, 0) >= measured_wait_s)
         return 0;
-    if (modelled_wait(intervals, jitter_sigma_max) <= measured_wait_s)
-        return jitter_sigma_max;
-    double lo = 0, hi = jitter_sigma_max;
-    while (hi - lo > 1e-7)
+    if (modelled_wait(intervals, jitter_k_max_sqrt_s) <= measured_wait_s)
+        return jitter_k_max_sqrt_s;
+    double lo = 0, hi = jitter_k_max_sqrt_s;
+    while (hi - lo > 1e-9)
         (modelled_wait(intervals, 0.5 * (lo + hi)) < measured_wait_s ? lo : hi) = 0.5 * (lo + hi);
     return 0.5 * (lo + hi);
 }

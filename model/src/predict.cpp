@@ -35,9 +35,9 @@ struct Costs {
     // Time-sharing overhead measured on the app's own calibration runs, by load (ranks x
     // threads / cores); a load it did not run falls back to the exchange benchmark's.
     std::map<double, double> sharing;
-    // Relative step-to-step jitter of a rank's compute (0: none measured); within the cores a
-    // step lasts the expected maximum over the ranks.
-    double jitter = 0;
+    // Step-to-step jitter of a rank's compute, standard deviation k sqrt(compute) (0: none
+    // measured); within the cores a step lasts the expected maximum over the ranks.
+    double jitter_k_sqrt_s = 0;
     // Peak RSS per rank (model/README.md "Memory"); absent in a model without calibration RSS.
     double bytes_per_particle = 0, bytes_per_interaction = 0, fixed_bytes = 0;
 };
@@ -89,7 +89,7 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         c.record_bytes = model.at("record_bytes").get<double>();
         c.cores = model.at("machine").at("cores").get<int>();
         if (model.contains("jitter"))
-            c.jitter = model.at("jitter").at("sigma").get<double>();
+            c.jitter_k_sqrt_s = model.at("jitter").at("k_sqrt_s").get<double>();
         if (model.contains("time_sharing"))
             for (const auto &t : model.at("time_sharing"))
                 c.sharing[t.at("load").get<double>()] = t.at("overhead").get<double>();
@@ -212,7 +212,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     std::vector<double> mean, sd;
     for (const auto &s : out) {
         mean.push_back(s.compute_s + s.comm_s);
-        sd.push_back(c.jitter * s.compute_s);
+        sd.push_back(jitter_sd(c.jitter_k_sqrt_s, s.compute_s));
     }
     const double longest = expected_max(mean, sd);
     // The exchanges are blocking: every rank's step lasts as long as the slowest. A core that
@@ -297,7 +297,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"trace", trace.source},
                            {"trace_scale", trace.scale},
                            {"trace_delta", trace.delta},
-                           {"jitter_sigma", c.jitter}};
+                           {"jitter_k_sqrt_s", c.jitter_k_sqrt_s}};
     out["fluid_particles"] = probe.fluid_particles;
     out["request"]["decompositions"] = req.decompositions;
     out["request"]["balance_weights"] = {

@@ -256,10 +256,11 @@ std::string calibration_table(const json &m) {
     }
     if (m.contains("jitter")) {
         const auto &j = m.at("jitter");
-        s += fmt("Step-to-step jitter of a rank's compute (all-busy runs within the cores): sigma "
-                 "%.3f (median of %zu runs; mean %.3f, spread %.3f-%.3f)\n",
-                 d(j.at("sigma")), j.at("runs").size(), d(j.at("sigma_mean")), d(j.at("sigma_min")),
-                 d(j.at("sigma_max")));
+        s += fmt("Step-to-step jitter of a rank's compute (all-busy runs within the cores): "
+                 "standard deviation k sqrt(compute), k %.4f s^0.5 (median of %zu runs; mean "
+                 "%.4f, spread %.4f-%.4f)\n",
+                 d(j.at("k_sqrt_s")), j.at("runs").size(), d(j.at("k_mean_sqrt_s")),
+                 d(j.at("k_min_sqrt_s")), d(j.at("k_max_sqrt_s")));
     }
     const auto &rl = m.at("roofline");
     s += fmt("Roofline: %.1f flops and %.1f bytes per interaction (thesis 89 and 56), intensity "

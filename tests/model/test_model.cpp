@@ -385,19 +385,20 @@ TEST(Jitter, ExpectedMaxMatchesClosedForms) {
                  std::invalid_argument);
 }
 
-TEST(Jitter, FitRecoversAPlantedSigmaFromSimulatedSteps) {
-    // Steps simulated with a planted relative jitter on unequal ranks; the measured wait is what
-    // the blocking exchange makes them pay. The fit must find the planted sigma again.
+TEST(Jitter, FitRecoversAPlantedKFromSimulatedSteps) {
+    // Steps simulated with a planted noise of standard deviation k sqrt(compute) on unequal
+    // ranks; the measured wait is what the blocking exchange makes them pay. The fit must find
+    // the planted k again.
     std::mt19937_64 rng(7);
     std::normal_distribution<double> z;
-    for (double planted : {0.05, 0.15}) {
-        const std::vector<double> compute{0.010, 0.009, 0.0105}, comm{2e-4, 3e-4, 2e-4};
+    const std::vector<double> compute{0.010, 0.009, 0.0105}, comm{2e-4, 3e-4, 2e-4};
+    for (double planted : {0.005, 0.015}) {
         constexpr int steps = 40000;
         double wait = 0;
         for (int s = 0; s < steps; ++s) {
             std::vector<double> t;
             for (std::size_t r = 0; r < compute.size(); ++r)
-                t.push_back(compute[r] * (1 + planted * z(rng)) + comm[r]);
+                t.push_back(compute[r] + planted * std::sqrt(compute[r]) * z(rng) + comm[r]);
             const double step = *std::max_element(t.begin(), t.end());
             for (double v : t)
                 wait += step - v;
@@ -405,9 +406,13 @@ TEST(Jitter, FitRecoversAPlantedSigmaFromSimulatedSteps) {
         const std::vector<BusyInterval> busy{{steps, compute, comm}};
         EXPECT_NEAR(fit_jitter(busy, wait), planted, 0.03 * planted) << planted;
     }
-    // Less wait than the ranks' own imbalance gives: no jitter.
+    // The deviation grows as the square root of the step: four times the compute, twice the
+    // standard deviation, half of it relative to the step.
+    EXPECT_DOUBLE_EQ(jitter_sd(0.01, 0.04), 2 * jitter_sd(0.01, 0.01));
+    // Less wait than the ranks' own imbalance gives: no jitter; more than any k gives: the bound.
     const std::vector<BusyInterval> uneven{{100, {0.01, 0.005}, {0, 0}}};
     EXPECT_EQ(fit_jitter(uneven, 0.1), 0.0);
+    EXPECT_EQ(fit_jitter(uneven, 1e6), jitter_k_max_sqrt_s);
 }
 
 namespace {
