@@ -60,13 +60,11 @@ echo "== DGEMM"
 "$build/bin/dgemm" "${dgemm_args[@]}" --json "$work/dgemm.json"
 
 suggested=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1])).get("suggested_coretype") or "")' "$work/dgemm.json")
-alts=()
 for ct in $(echo "$suggested,$coretypes" | tr ',' ' '); do
     [ -f "$work/dgemm_$ct.json" ] && continue
     echo "== DGEMM with OPENBLAS_CORETYPE=$ct"
     OPENBLAS_CORETYPE="$ct" "$build/bin/dgemm" "${dgemm_args[@]}" --no-probe --threads "$(nproc)" \
         --json "$work/dgemm_$ct.json"
-    alts+=(--dgemm-alt "$work/dgemm_$ct.json")
 done
 
 echo "== ping-pong on $ranks ranks"
@@ -76,20 +74,19 @@ bash "$root/scripts/mpirun.sh" -n "$ranks" "$build/bin/pingpong" "${pingpong_arg
 # The app's halo exchange at 2 ranks, at the core count and above it (time-sharing), so the
 # model knows what a shift costs after compute at every load it predicts.
 cores=$(nproc)
-exchanges=()
 for n in $(printf '%s\n' 2 "$cores" $((cores + cores / 2)) $((2 * cores)) | sort -nu); do
     [ "$n" -ge 2 ] || continue
     echo "== halo exchange on $n ranks"
     bash "$root/scripts/mpirun.sh" -n "$n" "$build/bin/exchange" "${exchange_args[@]}" --quiet \
         --json "$work/exchange_r$n.json"
-    exchanges+=("$work/exchange_r$n.json")
 done
 
 mkdir -p "$out"
-"$build/bin/machine-profile" --stream "$work/stream.json" --dgemm "$work/dgemm.json" \
-    "${alts[@]}" --pingpong "$work/pingpong.json" --exchange "${exchanges[@]}" \
-    --out "$work/machine.json"
+# This run's reports replace the last ones (an earlier run's extra core type or rank count must
+# not join the profile); an inter-node ping-pong of this node (pingpong-nodes.sbatch) stays.
+rm -f "$out"/dgemm_*.json "$out"/exchange_r*.json
 cp "$work"/*.json "$out/"
+bash "$root/scripts/merge-profile.sh" "$out"
 
 if [ "$model" -eq 0 ]; then
     echo "profile: $out/machine.json"

@@ -36,6 +36,11 @@ positive "thread count" "$threads"
 if [ -n "${SLURM_JOB_ID:-}" ] && [ "${SPHPERF_NO_SRUN:-0}" != 1 ] && command -v srun >/dev/null &&
     srun --mpi=list 2>&1 | grep -q pmix; then
     srun_flags=(--mpi=pmix -n "$ranks" --cpus-per-task="$threads" --cpu-bind=cores)
+    # A cluster without a task plugin cannot bind (local-slurm.sh's emulated nodes pin their
+    # slurmd instead): ask for no binding rather than draw srun's warning on every launch.
+    if scontrol show config 2>/dev/null | grep -Eq '^TaskPlugin +=.*task/none'; then
+        srun_flags=(--mpi=pmix -n "$ranks" --cpus-per-task="$threads")
+    fi
     # The allocation's CPUs on this node: SLURM_CPUS_ON_NODE in a batch script or step,
     # SLURM_JOB_CPUS_PER_NODE ("2" or "2(x3)") under salloc.
     allocated=${SLURM_CPUS_ON_NODE:-${SLURM_JOB_CPUS_PER_NODE:-0}}

@@ -65,9 +65,21 @@ int CpuSet::weight() const {
     return hwloc_bitmap_weight(set_);
 }
 
-Topology::Topology() {
+Topology::Topology(TopologyScope scope) {
     if (hwloc_topology_init(&topo_) != 0 || hwloc_topology_load(topo_) != 0)
         throw std::runtime_error("hwloc could not load the machine topology");
+    if (scope == TopologyScope::binding) {
+        const CpuSet bound = this_process_binding();
+        // A process bound nowhere in particular (or to everything) sees the whole machine.
+        if (bound.weight() > 0 &&
+            !hwloc_bitmap_isincluded(hwloc_topology_get_topology_cpuset(topo_), bound.get()) &&
+            hwloc_topology_restrict(topo_, bound.get(), 0) != 0) {
+            hwloc_topology_destroy(topo_);
+            throw std::runtime_error("hwloc could not restrict the topology to this process's "
+                                     "cpuset " +
+                                     bound.to_list());
+        }
+    }
 }
 Topology::~Topology() {
     hwloc_topology_destroy(topo_);

@@ -3,6 +3,7 @@
 #include "gemm_check.hpp"
 #include "peak_probe.hpp"
 
+#include "sphperf/allocation.hpp"
 #include "sphperf/cli.hpp"
 #include "sphperf/report.hpp"
 #include "sphperf/stats.hpp"
@@ -130,7 +131,7 @@ ProbeResult run_probe(const Topology &topo, int reps) {
     }
     p.iterations = iterations;
     p.per_core_gflops = probe_gflops(topo, one, iterations, reps);
-    p.threads = topo.cores();
+    p.threads = usable_cores(topo);
     p.all_cores_gflops =
         probe_gflops(topo, topo.placement(p.threads, Affinity::scatter), iterations, reps);
     return p;
@@ -188,13 +189,10 @@ Config parse(int argc, char **argv, const Topology &topo) {
     }
     if (cfg.threads.empty()) {
         cfg.threads.push_back(1);
-        if (topo.cores() > 1)
-            cfg.threads.push_back(topo.cores());
+        if (usable_cores(topo) > 1)
+            cfg.threads.push_back(usable_cores(topo));
     }
-    for (int t : cfg.threads)
-        if (t < 1 || t > topo.pus())
-            throw UsageError("--threads " + std::to_string(t) + " is outside 1.." +
-                             std::to_string(topo.pus()) + " (processing units on this node)");
+    check_thread_counts(cfg.threads, topo, "dgemm");
     if (cfg.reps < 1)
         throw UsageError("--reps " + std::to_string(cfg.reps) + " is too few, expected >= 1");
     if (cfg.probe_reps < 1)
@@ -204,7 +202,9 @@ Config parse(int argc, char **argv, const Topology &topo) {
 }
 
 int run(int argc, char **argv) {
-    const Topology topo;
+    // Only the cores this process may use (a Slurm allocation, taskset): threads placed
+    // outside them would escape the allocation and measure someone else's cores.
+    const Topology topo(TopologyScope::binding);
     const Config cfg = parse(argc, argv, topo);
     const JsonSink sink(cfg.json);
     omp_set_dynamic(0);
@@ -235,6 +235,7 @@ int run(int argc, char **argv) {
         }
 
     nlohmann::json report = report_header("dgemm", topo);
+    report["allocation"] = allocation_summary(topo);
     report["corename"] = corename;
     report["openblas_coretype_env"] =
         env_coretype ? nlohmann::json(env_coretype) : nlohmann::json();

@@ -2,6 +2,7 @@
 // adaptive repetitions until the median round trip is known to +-5% (95% CI), a piecewise
 // Hockney fit per pair, the thesis' two-point estimates, and a locality class per pair.
 #include "mpi_program.hpp"
+#include "sphperf/allocation.hpp"
 #include "sphperf/cli.hpp"
 #include "sphperf/model/hockney.hpp"
 #include "sphperf/report.hpp"
@@ -212,7 +213,7 @@ PairResult recv_result(int i, int j, std::size_t n_sizes) {
 std::vector<RankInfo> gather_rank_info(const Topology &topo, int rank, int size) {
     std::array<char, host_chars> host{};
     std::array<char, cpuset_chars> cpus{};
-    const std::string h = hostname();
+    const std::string h = node_name(); // SLURMD_NODENAME: emulated nodes count as nodes
     const CpuSet binding = topo.this_process_binding();
     const std::string c = binding.to_list();
     std::copy_n(h.begin(), std::min(h.size(), host_chars - 1), host.begin());
@@ -324,7 +325,7 @@ nlohmann::json build_report(const Topology &topo, const Config &cfg,
                         {"bandwidth_round_trips", cfg.bandwidth_round_trips}};
     for (int r = 0; r < size; ++r)
         report["rank_placement"].push_back({{"rank", r},
-                                            {"host", ranks[r].host},
+                                            {"node", ranks[r].host},
                                             {"cpuset", ranks[r].cpuset},
                                             {"bound_to_one_core", ranks[r].bound},
                                             {"last_cpu", ranks[r].last_cpu}});

@@ -3,6 +3,7 @@
 #include "stream_kernels.hpp"
 #include "stream_width.hpp"
 
+#include "sphperf/allocation.hpp"
 #include "sphperf/cli.hpp"
 #include "sphperf/report.hpp"
 #include "sphperf/stats.hpp"
@@ -196,12 +197,9 @@ Config parse(int argc, char **argv, const Topology &topo) {
     if (cfg.reps < 2)
         throw UsageError("--reps " + std::to_string(cfg.reps) + " is too few, expected >= 2");
     if (cfg.threads.empty())
-        for (int t = 1; t <= topo.cores(); ++t)
+        for (int t = 1; t <= usable_cores(topo); ++t)
             cfg.threads.push_back(t);
-    for (int t : cfg.threads)
-        if (t < 1 || t > topo.pus())
-            throw UsageError("--threads " + std::to_string(t) + " is outside 1.." +
-                             std::to_string(topo.pus()) + " (processing units on this node)");
+    check_thread_counts(cfg.threads, topo, "stream");
     for (const auto &a : cfg.affinities)
         parse_affinity(a);
     if (cfg.affinities.empty())
@@ -273,7 +271,9 @@ void print_table(const std::vector<ConfigResult> &results, std::size_t n, int re
 }
 
 int run(int argc, char **argv) {
-    const Topology topo;
+    // Only the cores this process may use (a Slurm allocation, taskset): threads placed
+    // outside them would escape the allocation and measure someone else's cores.
+    const Topology topo(TopologyScope::binding);
     const Config cfg = parse(argc, argv, topo);
     const JsonSink sink(cfg.json);
     const std::size_t n = array_elements(cfg, topo);
@@ -292,6 +292,7 @@ int run(int argc, char **argv) {
             }
 
     nlohmann::json report = report_header("stream", topo);
+    report["allocation"] = allocation_summary(topo);
     report["array_elements"] = n;
     report["element_bytes"] = sizeof(Real);
     report["array_bytes"] = n * sizeof(Real);

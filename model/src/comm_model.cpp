@@ -74,9 +74,14 @@ CommModel CommModel::from_profile(const nlohmann::json &machine) {
         l.fit = piecewise_from_json(c, "machine profile hockney/classes/" + name);
         m.classes_.push_back(std::move(l));
     }
+    // The fallback for an unknown placement on one node: the slowest class within a node
+    // (other_node only when nothing else was measured).
+    auto rank = [&](std::size_t i) {
+        return std::pair{m.classes_[i].locality != "other_node",
+                         m.classes_[i].fit.predict(probe_bytes)};
+    };
     for (std::size_t i = 1; i < m.classes_.size(); ++i)
-        if (m.classes_[i].fit.predict(probe_bytes) >
-            m.classes_[m.slowest_].fit.predict(probe_bytes))
+        if (rank(i) > rank(m.slowest_))
             m.slowest_ = i;
     return m;
 }
@@ -84,9 +89,17 @@ CommModel CommModel::from_profile(const nlohmann::json &machine) {
 const Link &CommModel::link(int pu_a, int pu_b) const {
     if (pu_a >= 0 && pu_b >= 0 && pu_a != pu_b)
         for (const auto &l : pairs_)
-            if ((l.pu_a == pu_a && l.pu_b == pu_b) || (l.pu_a == pu_b && l.pu_b == pu_a))
+            if (l.locality != "other_node" &&
+                ((l.pu_a == pu_a && l.pu_b == pu_b) || (l.pu_a == pu_b && l.pu_b == pu_a)))
                 return l;
     return slowest_class();
+}
+
+const Link *CommModel::class_named(const std::string &name) const {
+    for (const auto &l : classes_)
+        if (l.locality == name)
+            return &l;
+    return nullptr;
 }
 
 double CommModel::sendrecv_seconds(int pu, int pu_out, double out, int pu_in, double in) const {

@@ -12,7 +12,7 @@ namespace {
 using namespace sphperf;
 
 struct Config {
-    std::filesystem::path stream, dgemm, pingpong, out;
+    std::filesystem::path stream, dgemm, pingpong, pingpong_nodes, out;
     std::vector<std::filesystem::path> dgemm_alternatives, exchanges;
 };
 
@@ -26,6 +26,10 @@ int run(int argc, char **argv) {
     app.add_option("--dgemm-alt", cfg.dgemm_alternatives,
                    "dgemm reports run with other OpenBLAS core types");
     app.add_option("--pingpong", cfg.pingpong, "pingpong report (JSON)")->required();
+    app.add_option(
+        "--pingpong-nodes", cfg.pingpong_nodes,
+        "pingpong report across two or more nodes (scripts/slurm/pingpong-nodes.sbatch): "
+        "adds the other_node class");
     app.add_option("--exchange", cfg.exchanges,
                    "exchange reports (JSON), one per rank count, for the app's halo exchange");
     app.add_option("--out", cfg.out, "machine profile to write (JSON)")->required();
@@ -48,10 +52,15 @@ int run(int argc, char **argv) {
     std::vector<nlohmann::json> exchanges;
     for (const auto &e : cfg.exchanges)
         exchanges.push_back(checked(e, "exchange", "exchange"));
+    const auto nodes = cfg.pingpong_nodes.empty()
+                           ? nlohmann::json()
+                           : checked(cfg.pingpong_nodes, "pingpong", "pingpong");
     nlohmann::json profile;
     try {
         profile = model::build_profile(report_header("machine", topo), stream, dgemm, pingpong,
                                        alts, exchanges);
+        if (!nodes.is_null())
+            model::add_inter_node(profile, nodes, "'" + cfg.pingpong_nodes.string() + "'");
     } catch (const nlohmann::json::exception &e) {
         throw UsageError(std::string("a report lacks a field the profile needs: ") + e.what());
     }

@@ -134,13 +134,55 @@ std::pair<double, const char *> sharing_overhead(const Costs &c, int processes,
     return {1.0, "none (no measurement at this load)"};
 }
 
+// The node of every rank as srun -N places P ranks on N nodes: in blocks, the first P mod N
+// nodes one rank more.
+std::vector<int> node_blocks(int P, int nodes) {
+    std::vector<int> node(static_cast<std::size_t>(P));
+    for (int n = 0, r = 0; n < nodes; ++n)
+        for (int k = 0; k < P / nodes + (n < P % nodes ? 1 : 0); ++k)
+            node[static_cast<std::size_t>(r++)] = n;
+    return node;
+}
+
+// The first processing unit of every rank, each node's block placed as the launcher does.
+std::vector<int> placement_of(int P, int nodes, int threads, int cores) {
+    const std::vector<int> node = node_blocks(P, nodes);
+    std::vector<int> pus;
+    for (int n = 0; n < nodes; ++n) {
+        const auto K = static_cast<int>(std::count(node.begin(), node.end(), n));
+        for (int pu : launcher_placement(K, threads, cores))
+            pus.push_back(pu);
+    }
+    return pus;
+}
+
 // One step of every rank at simulated time t, from the workload of the slabs.
 std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const WorkDensity &density,
-                                   const Costs &c, int threads, double t, double &step_s) {
+                                   const Costs &c, int threads, int nodes, double t,
+                                   double &step_s) {
     const double disorder = c.disorder ? c.disorder->at(t, c.delta) : 0.0;
     const int P = static_cast<int>(loads.size());
-    const bool shared = P * threads > c.cores;
-    auto pu = [&](int r) { return shared || r < 0 || r >= P ? -1 : r * threads; };
+    // Each node places and time-shares its own block of ranks.
+    const std::vector<int> node = node_blocks(P, nodes);
+    std::vector<std::vector<int>> on_node(static_cast<std::size_t>(nodes));
+    std::vector<int> local(static_cast<std::size_t>(P));
+    for (int r = 0; r < P; ++r) {
+        auto &block = on_node[static_cast<std::size_t>(node[static_cast<std::size_t>(r)])];
+        local[static_cast<std::size_t>(r)] = static_cast<int>(block.size());
+        block.push_back(r);
+    }
+    auto node_shared = [&](int n) {
+        return static_cast<int>(on_node[static_cast<std::size_t>(n)].size()) * threads > c.cores;
+    };
+    auto pu = [&](int r) {
+        return r < 0 || r >= P || node_shared(node[static_cast<std::size_t>(r)])
+                   ? -1
+                   : local[static_cast<std::size_t>(r)] * threads;
+    };
+    auto same_node = [&](int a, int b) {
+        return node[static_cast<std::size_t>(a)] == node[static_cast<std::size_t>(b)];
+    };
+    const Link *inter = nodes > 1 ? c.comm.class_named("other_node") : nullptr;
     std::vector<RankStep> out(static_cast<std::size_t>(P));
     std::vector<double> compute, field;
     for (int r = 0; r < P; ++r) {
@@ -172,58 +214,92 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         compute.push_back(s.compute_s);
         field.push_back(s.field);
     }
+    // Per node, the time-sharing bound of its block of ranks (0 where within the cores).
+    auto node_step = [&](int n, double overhead) {
+        const auto &block = on_node[static_cast<std::size_t>(n)];
+        std::vector<double> bc, bf;
+        for (int r : block) {
+            bc.push_back(compute[static_cast<std::size_t>(r)]);
+            bf.push_back(field[static_cast<std::size_t>(r)]);
+        }
+        const int K = static_cast<int>(block.size());
+        return time_shared_step(bc, bf, launcher_placement(K, threads, c.cores), threads, c.cores,
+                                overhead)
+            .step_s;
+    };
     // The compute that precedes each of the three shifts of a step: on this kind of machine
     // it decides what a shift costs (exchange benchmark). Above the core count the ranks
     // take turns where the launcher put them, so a step spans at least the busiest core's.
-    const std::vector<int> placed = launcher_placement(P, threads, c.cores);
-    const double busy = shared ? time_shared_step(compute, field, placed, threads, c.cores).step_s
-                               : *std::max_element(compute.begin(), compute.end());
+    double busy = 0;
+    for (int n = 0; n < nodes; ++n)
+        for (int r : on_node[static_cast<std::size_t>(n)])
+            busy = std::max(busy, node_shared(n) ? node_step(n, 1.0)
+                                                 : compute[static_cast<std::size_t>(r)]);
     const double gap = busy / shifts_per_step;
+    const int most_on_a_node = (P + nodes - 1) / nodes;
     const ExchangeSet *set =
-        c.exchange.empty() ? nullptr : &c.exchange.set_for(P, threads, c.cores);
+        c.exchange.empty() ? nullptr : &c.exchange.set_for(most_on_a_node, threads, c.cores);
+    // One message: across nodes the other_node class, within one the link of the two units.
+    auto message = [&](int from, int to, double bytes) {
+        return same_node(from, to) ? c.comm.seconds(pu(from), pu(to), bytes)
+                                   : inter->fit.predict(bytes);
+    };
     for (int r = 0; r < P && P > 1; ++r) {
         const SlabLoad &l = loads[static_cast<std::size_t>(r)];
         RankStep &s = out[static_cast<std::size_t>(r)];
         // Three exchanges (migration, ghosts, density), each an eastward then a westward shift
         // of a count and a payload; migration payloads are taken as empty (a few particles).
         const bool west = r > 0, east = r + 1 < P;
+        const bool crosses = (west && !same_node(r, r - 1)) || (east && !same_node(r, r + 1));
         const double in_from_west = west ? loads[static_cast<std::size_t>(r - 1)].export_east : -1;
         const double in_from_east = east ? loads[static_cast<std::size_t>(r + 1)].export_west : -1;
         auto exchange = [&](double per_particle) {
-            if (set) {
-                const double most =
-                    std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
-                return ExchangeModel::shift_seconds(*set, gap, most * per_particle);
-            }
-            auto shift = [&](double out_e, double in_w, double out_w, double in_e) {
-                return c.comm.sendrecv_seconds(pu(r), pu(r + 1), east ? out_e : -1, pu(r - 1),
-                                               west ? in_w : -1) +
-                       c.comm.sendrecv_seconds(pu(r), pu(r - 1), west ? out_w : -1, pu(r + 1),
-                                               east ? in_e : -1);
+            // One MPI_Sendrecv: both directions travel at once, it lasts the longer one.
+            auto sendrecv = [&](int to, double out_b, int from, double in_b) {
+                return std::max(to >= 0 && to < P ? message(r, to, out_b) : 0.0,
+                                from >= 0 && from < P ? message(from, r, in_b) : 0.0);
             };
-            return shift(count_bytes, count_bytes, count_bytes, count_bytes) +
-                   shift(l.export_east * per_particle, std::max(0.0, in_from_west) * per_particle,
-                         l.export_west * per_particle, std::max(0.0, in_from_east) * per_particle);
+            auto shift = [&](double out_e, double in_w, double out_w, double in_e) {
+                return sendrecv(r + 1, out_e, r - 1, in_w) + sendrecv(r - 1, out_w, r + 1, in_e);
+            };
+            const double hockney =
+                shift(count_bytes, count_bytes, count_bytes, count_bytes) +
+                shift(l.export_east * per_particle, std::max(0.0, in_from_west) * per_particle,
+                      l.export_west * per_particle, std::max(0.0, in_from_east) * per_particle);
+            if (!set)
+                return hockney;
+            const double most =
+                std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
+            const double measured = ExchangeModel::shift_seconds(*set, gap, most * per_particle);
+            // A shift that leaves the node lasts at least its network messages.
+            return crosses ? std::max(measured, hockney) : measured;
         };
         s.comm_s = exchange(0.0) + exchange(c.record_bytes) + exchange(density_bytes);
     }
     // Within the cores the step lasts as long as the slowest rank's compute + communication,
     // each compute with its step-to-step jitter: the expected maximum, not the largest mean.
-    std::vector<double> mean, sd;
-    for (const auto &s : out) {
-        mean.push_back(s.compute_s + s.comm_s);
-        sd.push_back(jitter_sd(c.jitter_k_sqrt_s, s.compute_s));
-    }
-    const double longest = expected_max(mean, sd);
     // The exchanges are blocking: every rank's step lasts as long as the slowest. A core that
     // serves two busy ranks costs a little more than their summed compute (switches, a rank
     // waiting for a descheduled neighbour): the overhead the app's own time-shared calibration
     // runs measured at this load, else the exchange benchmark's round overhead. Above the cores
     // a rank waiting in a shift is descheduled and the others compute: the shifts' cost is
     // inside the time-sharing bound, not added to it.
-    const double overhead = sharing_overhead(c, P * threads, set, gap).first;
-    step_s = shared ? time_shared_step(compute, field, placed, threads, c.cores, overhead).step_s
-                    : longest;
+    std::vector<double> mean, sd;
+    double shared_step = 0;
+    for (int n = 0; n < nodes; ++n) {
+        if (node_shared(n)) {
+            const int K = static_cast<int>(on_node[static_cast<std::size_t>(n)].size());
+            shared_step = std::max(shared_step,
+                                   node_step(n, sharing_overhead(c, K * threads, set, gap).first));
+            continue;
+        }
+        for (int r : on_node[static_cast<std::size_t>(n)]) {
+            const auto &s = out[static_cast<std::size_t>(r)];
+            mean.push_back(s.compute_s + s.comm_s);
+            sd.push_back(jitter_sd(c.jitter_k_sqrt_s, s.compute_s));
+        }
+    }
+    step_s = std::max(shared_step, mean.empty() ? 0.0 : expected_max(mean, sd));
     for (auto &s : out) {
         s.wait_s = std::max(0.0, step_s - s.compute_s - s.comm_s);
         s.idle_s = s.field > 0 ? 0.0 : step_s;
@@ -286,12 +362,24 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     if (c.disorder)
         (void)c.disorder->at(static_cast<double>(steps) * req.dt, req.delta);
 
+    if (req.nodes < 1)
+        throw UsageError("--nodes " + std::to_string(req.nodes) + " is not a positive node count");
+    for (int P : req.ranks)
+        if (P < req.nodes)
+            throw UsageError("--ranks " + std::to_string(P) + " is fewer than --nodes " +
+                             std::to_string(req.nodes) + ": every node needs a rank");
+    if (req.nodes > 1 && !c.comm.class_named("other_node"))
+        throw UsageError("--nodes " + std::to_string(req.nodes) +
+                         " needs the machine's other_node class, which the model's machine "
+                         "profile lacks: run scripts/slurm/pingpong-nodes.sbatch on two or more "
+                         "nodes, then calibrate again");
     json out = header;
     out["request"] = {{"setup", req.setup},     {"grid", req.grid},
                       {"scale", req.scale},     {"delta", req.delta},
                       {"dt", req.dt},           {"steps", steps},
                       {"threads", req.threads}, {"interval", req.interval},
-                      {"cores", c.cores},       {"ranks", req.ranks}};
+                      {"cores", c.cores},       {"ranks", req.ranks},
+                      {"nodes", req.nodes}};
     out["model_source"] = {{"git_commit", model.value("git_commit", "")},
                            {"timestamp", model.value("timestamp", "")},
                            {"trace", trace.source},
@@ -379,7 +467,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                     double step_s = 0;
                     const auto ranks =
                         predict_step(recut(cols, tgt.wall_columns, cuts), density_at(trace, ts), c,
-                                     req.threads, t, step_s);
+                                     req.threads, req.nodes, t, step_s);
                     step_mean += step_s / samples_per_interval;
                     for (std::size_t r = 0; r < ranks.size(); ++r) {
                         auto &m = mean[r];
@@ -483,6 +571,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                           {"peak_rss_bytes_total", total}};
             }
             wall += rebalance_total;
+            const int per_node = (P + req.nodes - 1) / req.nodes;
             configs.push_back(
                 {{"ranks", P},
                  {"decomposition", dec},
@@ -490,13 +579,16 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  {"rebalances", balanced ? rebalances : json(nullptr)},
                  {"memory", memory},
                  {"threads", req.threads},
-                 {"oversubscribed", P * req.threads > c.cores},
-                 {"placement_pus", launcher_placement(P, req.threads, c.cores)},
+                 {"nodes", req.nodes},
+                 {"ranks_per_node_max", per_node},
+                 {"oversubscribed", per_node * req.threads > c.cores},
+                 {"placement_pus", placement_of(P, req.nodes, req.threads, c.cores)},
                  {"time_sharing_source",
-                  sharing_overhead(
-                      c, P * req.threads,
-                      c.exchange.empty() ? nullptr : &c.exchange.set_for(P, req.threads, c.cores),
-                      0)
+                  sharing_overhead(c, per_node * req.threads,
+                                   c.exchange.empty()
+                                       ? nullptr
+                                       : &c.exchange.set_for(per_node, req.threads, c.cores),
+                                   0)
                       .second},
                  {"wall_s", wall},
                  {"totals",

@@ -131,11 +131,12 @@ nlohmann::json hockney_section(const nlohmann::json &pingpong) {
         nlohmann::json e = pr;
         e.erase("samples");
         const auto ranks = pr.value("ranks", nlohmann::json::array());
-        if (ranks.size() == 2 && pu_of_rank.count(ranks[0].get<int>()) &&
+        const std::string loc = pr.value("locality", "unknown");
+        // Processing units identify a link only within one node.
+        if (loc != "other_node" && ranks.size() == 2 && pu_of_rank.count(ranks[0].get<int>()) &&
             pu_of_rank.count(ranks[1].get<int>()))
             e["pus"] = {pu_of_rank[ranks[0].get<int>()], pu_of_rank[ranks[1].get<int>()]};
         const PiecewiseFit fit = piecewise_from_json(e, "pingpong pair");
-        const std::string loc = pr.value("locality", "unknown");
         const double t = fit.predict(16384.0);
         if (!slowest.count(loc) || t > slowest[loc]) {
             slowest[loc] = t;
@@ -283,6 +284,31 @@ nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream
     p["dgemm_alternatives"] = dgemm_alternatives;
     p["pingpong"] = pingpong;
     return p;
+}
+
+void add_inter_node(nlohmann::json &profile, const nlohmann::json &pingpong_nodes,
+                    const std::string &where) {
+    const nlohmann::json h = hockney_section(pingpong_nodes);
+    if (!h["classes"].contains("other_node"))
+        throw UsageError(where + " has no pair of ranks on different nodes (run it with one "
+                                 "rank per node on two or more nodes: "
+                                 "scripts/slurm/pingpong-nodes.sbatch)");
+    auto &pairs = profile["hockney"]["pairs"];
+    // A second merge replaces the first: the newest inter-node measurement wins.
+    nlohmann::json kept = nlohmann::json::array();
+    for (auto &p : pairs)
+        if (p.value("locality", "") != "other_node")
+            kept.push_back(std::move(p));
+    for (const auto &p : h["pairs"])
+        if (p.value("locality", "") == "other_node")
+            kept.push_back(p);
+    pairs = std::move(kept);
+    profile["hockney"]["classes"]["other_node"] = h["classes"]["other_node"];
+    const auto &summary = pingpong_nodes.value("classes", nlohmann::json::object());
+    if (summary.contains("other_node"))
+        profile["comm_classes"]["other_node"] = summary["other_node"];
+    profile["timestamps"]["pingpong_nodes"] = pingpong_nodes.value("timestamp", "");
+    profile["pingpong_nodes"] = pingpong_nodes;
 }
 
 } // namespace sphperf::model

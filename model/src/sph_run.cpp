@@ -110,6 +110,8 @@ SphRun load_sph_run(const std::filesystem::path &path) {
         r.wall_columns = j.at("wall_columns").get<std::vector<double>>();
         r.peak_rss_bytes = j.at("peak_rss_bytes").get<std::vector<double>>();
         r.placement_pus = j.at("placement_pus").get<std::vector<int>>();
+        // Reports before multi-node runs were on one node.
+        r.config.nodes = j.value("nodes", 1);
         if (j.contains("decomposition")) {
             const auto &d = j.at("decomposition");
             r.config.decomposition = d.at("kind").get<std::string>();
@@ -132,6 +134,9 @@ SphRun load_sph_run(const std::filesystem::path &path) {
     if (r.initial_columns.size() != cols || r.wall_columns.size() != cols)
         bad("column histograms do not have config/cell_columns = " + std::to_string(cols) +
             " entries");
+    if (r.config.nodes < 1 || r.config.nodes > r.config.ranks)
+        bad("nodes " + std::to_string(r.config.nodes) +
+            " is outside 1..config/ranks = " + std::to_string(r.config.ranks));
     if (r.placement_pus.size() != static_cast<std::size_t>(r.config.ranks))
         bad("placement_pus has " + std::to_string(r.placement_pus.size()) +
             " entries, expected config/ranks = " + std::to_string(r.config.ranks));

@@ -100,6 +100,11 @@ int run(int argc, char **argv) {
         ->check(CLI::Range(0, 1 << 30));
     pre->add_option("--cores", q.cores, "Cores of the node (default: the model's machine)")
         ->check(CLI::Range(1, 1 << 20));
+    pre->add_option("--nodes", q.nodes,
+                    "Nodes the ranks span, in blocks as srun -N places them (> 1 needs the "
+                    "machine's other_node class: scripts/slurm/pingpong-nodes.sbatch)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

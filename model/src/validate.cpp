@@ -35,6 +35,7 @@ const json *match(const std::vector<json> &predictions, const SphRun &m) {
             continue;
         for (const auto &c : p.at("configurations"))
             if (c.at("ranks").get<int>() == m.config.ranks &&
+                c.value("nodes", 1) == m.config.nodes &&
                 (c.contains("decomposition") ? c.at("decomposition").get<std::string>()
                                              : std::string("equal")) == m.config.decomposition)
                 return &c;
@@ -147,6 +148,7 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"delta", m.config.delta},
                  {"ranks", P},
                  {"threads", m.config.threads},
+                 {"nodes", m.config.nodes},
                  {"decomposition", m.config.decomposition},
                  {"steps", m.config.steps},
                  {"measured_rebalance_s", m.config.rebalance_s},
@@ -281,12 +283,13 @@ std::string calibration_table(const json &m) {
 
 std::string prediction_table(const json &p) {
     const auto &q = p.at("request");
-    std::string s =
-        fmt("prediction: %s, grid %s, scale %g, delta %g, %lld steps, %d thread(s), "
-            "%.0f field particles\n",
-            q.at("setup").get<std::string>().c_str(), q.at("grid").get<std::string>().c_str(),
-            d(q.at("scale")), d(q.at("delta")), q.at("steps").get<long long>(),
-            q.at("threads").get<int>(), d(p.at("fluid_particles")));
+    std::string s = fmt(
+        "prediction: %s, grid %s, scale %g, delta %g, %lld steps, %d thread(s), "
+        "%.0f field particles%s\n",
+        q.at("setup").get<std::string>().c_str(), q.at("grid").get<std::string>().c_str(),
+        d(q.at("scale")), d(q.at("delta")), q.at("steps").get<long long>(),
+        q.at("threads").get<int>(), d(p.at("fluid_particles")),
+        q.value("nodes", 1) > 1 ? fmt(", ranks over %d nodes", q.value("nodes", 1)).c_str() : "");
     s += fmt("  %-8s %5s %10s %8s %7s %11s %9s %9s %9s %s\n", "slabs", "ranks", "wall_s", "speedup",
              "eff", "compute_s", "comm_s", "wait_s", "idle_s", "all busy from step");
     for (const auto &c : p.at("configurations")) {
@@ -316,7 +319,8 @@ std::string validation_table(const json &v) {
         const std::string grid = r.at("grid").get<std::string>() +
                                  (r.value("decomposition", std::string("equal")) == "equal"
                                       ? ""
-                                      : " " + r.at("decomposition").get<std::string>());
+                                      : " " + r.at("decomposition").get<std::string>()) +
+                                 (r.value("nodes", 1) > 1 ? fmt(" %dN", r.value("nodes", 1)) : "");
         s += fmt("  %-8s %-14s %5g %5d %3d %6lld %9.2fs %9.2fs %+7.1f%% %+7.1f%% %+7.1f%% %+7.1f%% "
                  "%+7.1f%% %s\n",
                  r.at("setup").get<std::string>().c_str(), grid.c_str(), d(r.at("scale")),

@@ -277,4 +277,16 @@ std::vector<int> Domain::gather_int(int v) const {
     return out;
 }
 
+std::vector<std::string> Domain::gather_string(const std::string &v) const {
+    constexpr std::size_t width = 256;
+    std::vector<char> mine(width, '\0'), all(width * static_cast<std::size_t>(slab_.ranks));
+    std::copy_n(v.begin(), std::min(v.size(), width - 1), mine.begin());
+    MPI_Allgather(mine.data(), static_cast<int>(width), MPI_CHAR, all.data(),
+                  static_cast<int>(width), MPI_CHAR, comm_);
+    std::vector<std::string> out;
+    for (int r = 0; r < slab_.ranks; ++r)
+        out.emplace_back(&all[static_cast<std::size_t>(r) * width]);
+    return out;
+}
+
 } // namespace sphperf::sph

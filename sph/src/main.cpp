@@ -1,4 +1,5 @@
 // sph: the SPH proxy application (2D weakly compressible dam break), MPI slabs + OpenMP.
+#include "sphperf/allocation.hpp"
 #include "sphperf/cli.hpp"
 #include "sphperf/model/comm_model.hpp"
 #include "sphperf/model/memory.hpp"
@@ -267,37 +268,13 @@ void simulate(const Config &cfg, const Geometry &geo, int rank) {
                     : cfg.grid == GridKind::table ? Simulation<CellTable>(cfg, geo, domain).run()
                                                   : Simulation<CellSorted>(cfg, geo, domain).run();
     rec.placement_pus = pus;
+    rec.placement_nodes = domain.gather_string(node_name());
     if (rank == 0) {
         const Topology topo;
         const nlohmann::json report = build_report(rec, topo);
         print_summary(report);
         JsonSink(cfg.report).write(report);
     }
-}
-
-// Leading integer of an environment variable ("2(x3)" gives 2); 0 when unset or not a number.
-int env_count(const char *name) {
-    const char *v = std::getenv(name);
-    return v ? std::atoi(v) : 0;
-}
-
-// This job's ranks on this node, as the launcher (mpirun or srun) tells them.
-int ranks_on_node() {
-    return std::max(
-        {1, env_count("OMPI_COMM_WORLD_LOCAL_SIZE"), env_count("SLURM_STEP_TASKS_PER_NODE")});
-}
-
-// Threads per rank when neither --threads nor OMP_NUM_THREADS says: a Slurm task's own CPUs
-// (SLURM_CPUS_PER_TASK); else the cores this rank is bound to, shared fairly by the node's ranks
-// when the launcher bound none of them apart (every rank sees the whole node or allocation).
-int default_threads(const Topology &topo) {
-    if (const int per_task = env_count("SLURM_CPUS_PER_TASK"); per_task > 0)
-        return per_task;
-    const int bound = topo.this_process_binding().weight();
-    const int local = ranks_on_node();
-    if (bound <= 0)
-        return std::max(1, topo.pus() / local);
-    return bound < topo.pus() ? bound : std::max(1, bound / local);
 }
 
 int run(int argc, char **argv, int rank, int ranks) {

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <fstream>
 #include <numeric>
+#include <set>
 
 namespace sphperf::sph {
 
@@ -167,6 +168,9 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     j["peak_rss_bytes"] = run.peak_rss_bytes;
     j["record_bytes"] = sizeof(ParticleRecord);
     j["placement_pus"] = run.placement_pus;
+    j["placement_nodes"] = run.placement_nodes;
+    j["nodes"] =
+        std::set<std::string>(run.placement_nodes.begin(), run.placement_nodes.end()).size();
     j["machine"] = c.machine ? nlohmann::json(c.machine->string()) : nlohmann::json();
     j["initial_columns"] = run.initial_columns;
     j["wall_columns"] = run.wall_columns;

@@ -54,6 +54,58 @@ TEST(StreamCli, SweepsRequestedThreadsAndAffinities) {
     EXPECT_NE(j["results"][3]["placement"][0]["cpuset"], j["results"][3]["placement"][1]["cpuset"]);
 }
 
+// A benchmark bound to one core (taskset, as Slurm's task/affinity binds a task) or told by
+// SLURM_CPUS_PER_TASK measures that many cores by default, places its threads inside its
+// binding, says where it ran, and refuses thread counts beyond its binding.
+TEST(Allocation, BenchmarksStayInsideTheirAllocation) {
+    if (run("nproc").out.find_first_not_of("01\n") == std::string::npos)
+        GTEST_SKIP() << "needs two or more cores";
+    const auto dir = scratch("allocation");
+    const auto s1 = dir / "s_core1.json";
+    auto r = run("env -u SLURM_CPUS_PER_TASK taskset -c 1 " + bin("stream") + tiny_stream +
+                 " --affinity compact --vector-bits 128 --json " + s1.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    auto j = load(s1);
+    ASSERT_EQ(j["results"].size(), 1u); // 1 thread x 1 affinity x 1 width
+    EXPECT_EQ(j["results"][0]["threads"], 1);
+    EXPECT_EQ(j["results"][0]["placement"][0]["cpuset"], "1");
+    EXPECT_EQ(j["allocation"]["bound_pus"], "1");
+    EXPECT_EQ(j["allocation"]["usable_cores"], 1);
+    EXPECT_TRUE(j["allocation"]["slurm_cpus_per_task"].is_null());
+    r = run("env SLURM_CPUS_PER_TASK=1 " + bin("stream") + tiny_stream +
+            " --affinity compact --vector-bits 128 --json " + (dir / "s_slurm.json").string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    j = load(dir / "s_slurm.json");
+    ASSERT_EQ(j["results"].size(), 1u);
+    EXPECT_EQ(j["allocation"]["slurm_cpus_per_task"], 1);
+    // More threads than Slurm gave the task: measured as asked, with a warning.
+    r = run("env SLURM_CPUS_PER_TASK=1 " + bin("stream") + tiny_stream +
+            " --threads 2 --affinity compact --vector-bits 128 --json " +
+            (dir / "s_over.json").string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("stream: warning: --threads 2 exceeds SLURM_CPUS_PER_TASK=1"),
+              std::string::npos)
+        << r.err;
+    // More threads than the cores it is bound to: refused, naming them.
+    r = run("taskset -c 1 " + bin("stream") + tiny_stream + " --threads 2 --json " +
+            (dir / "s_bad.json").string());
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find("--threads 2 is outside 1..1 (the processing units this process may "
+                         "use: 1)"),
+              std::string::npos)
+        << r.err;
+    EXPECT_FALSE(fs::exists(dir / "s_bad.json"));
+    // DGEMM: 1 thread by default and a one-core peak probe.
+    r = run("env -u SLURM_CPUS_PER_TASK taskset -c 1 " + bin("dgemm") + tiny_dgemm + " --json " +
+            (dir / "d.json").string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    j = load(dir / "d.json");
+    for (const auto &res : j["results"])
+        EXPECT_EQ(res["threads"], 1);
+    EXPECT_EQ(j["peak_probe"]["threads"], 1);
+    EXPECT_EQ(j["allocation"]["bound_pus"], "1");
+}
+
 TEST(DgemmCli, TinyRunWritesACompleteReport) {
     const auto dir = scratch("dgemm");
     const auto r =

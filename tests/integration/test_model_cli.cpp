@@ -263,6 +263,47 @@ TEST(ModelCli, CostAwareCutsUseTheModelsWeights) {
     EXPECT_NE(r.err.find("--model needs --decomposition balanced"), std::string::npos) << r.err;
 }
 
+// Ranks over nodes: a planted other_node class of 1 ms per message and nothing per byte, far
+// above any shift measured within this node, sets every cross-node shift. At 2 ranks on 2 nodes
+// each rank has one cross-node side: per exchange a count and a payload shift, each two
+// Sendrecvs (east, west) of which one side leaves the node: 4 ms, 12 ms per step for 3
+// exchanges. On one node the same prediction costs far less, and a one-node run is never
+// matched to a two-node prediction.
+TEST(ModelCli, RanksOverNodesPayTheInterNodeClass) {
+    const auto &f = fixture();
+    auto model = load(f.model);
+    model["machine"]["hockney"]["classes"]["other_node"] = {
+        {"breakpoint_bytes", 0},
+        {"pieces",
+         {{{"alpha_s", 1e-3}, {"beta_s_per_byte", 0}, {"first_bytes", 1}, {"last_bytes", 1e7}}}}};
+    const auto nodes_model = f.dir / "model_nodes.json";
+    std::ofstream(nodes_model) << model.dump();
+    auto predict = [&](int nodes) {
+        const auto out = f.dir / ("pred_nodes" + std::to_string(nodes) + ".json");
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " predict --model " + nodes_model.string() +
+                " --setup dambreak --scale 0.5 --ranks 2 --steps 60 --interval 10 "
+                "--nodes " +
+                std::to_string(nodes) + " --out " + out.string());
+        EXPECT_EQ(r.code, 0) << r.err;
+        return load(out);
+    };
+    const auto one = predict(1), two = predict(2);
+    const auto &c2 = two["configurations"][0];
+    EXPECT_EQ(c2["nodes"], 2);
+    EXPECT_EQ(c2["ranks_per_node_max"], 1);
+    EXPECT_EQ(c2["placement_pus"], (nlohmann::json{0, 0})); // each node places its own rank
+    EXPECT_NEAR(c2["totals"]["comm_s"].get<double>(), 2 * 60 * 12e-3, 1e-9);
+    EXPECT_LT(one["configurations"][0]["totals"]["comm_s"].get<double>(), 0.1 * 2 * 60 * 12e-3);
+    const auto val = f.dir / "validation_nodes.json";
+    const sphperf::testing::Run r =
+        run(bin("sphmodel") + " validate --prediction " + (f.dir / "pred_nodes2.json").string() +
+            " --measured " + f.run2.string() + " --out " + val.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto v = load(val);
+    EXPECT_TRUE(v["configurations"].empty()) << v["configurations"];
+}
+
 TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
     const auto j = load(fixture().run2);
     double predicted = 0, messages = 0;
@@ -340,6 +381,14 @@ INSTANTIATE_TEST_SUITE_P(
                       "calibration recorded only"},
         BadModelInput{"nan_scale", "predict --model MODEL --scale nan --steps 10", "nan"},
         BadModelInput{"no_length", "predict --model MODEL --scale 0.5", "--steps"},
+        BadModelInput{"nodes_without_their_class",
+                      "predict --model MODEL --scale 0.5 --ranks 2 --nodes 2 --steps 10",
+                      "needs the machine's other_node class"},
+        BadModelInput{"fewer_ranks_than_nodes",
+                      "predict --model MODEL --scale 0.5 --ranks 1,2 --nodes 2 --steps 10",
+                      "--ranks 1 is fewer than --nodes 2"},
+        BadModelInput{"zero_nodes", "predict --model MODEL --scale 0.5 --nodes 0 --steps 10",
+                      "--nodes"},
         BadModelInput{"negative_max_error",
                       "validate --max-error -1 --prediction MODEL --measured RUN", "-1"}),
     [](const auto &info) { return std::string(info.param.name); });

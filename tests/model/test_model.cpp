@@ -427,8 +427,10 @@ nlohmann::json two_piece_profile() {
     nlohmann::json pair = fit;
     pair["pus"] = {0, 1};
     pair["locality"] = "same_l3";
-    return {
-        {"hockney", {{"pairs", {pair}}, {"classes", {{"same_l3", fit}, {"other_node", slow}}}}}};
+    nlohmann::json network{{"breakpoint_bytes", 0}, {"pieces", {piece(5e-5, 1e-9, 1, 1e7)}}};
+    return {{"hockney",
+             {{"pairs", {pair}},
+              {"classes", {{"same_l3", fit}, {"other_package", slow}, {"other_node", network}}}}}};
 }
 } // namespace
 
@@ -473,9 +475,13 @@ TEST(Comm, EachMessageIsCostedWithItsOwnPiece) {
     const CommModel m = CommModel::from_profile(two_piece_profile());
     EXPECT_NEAR(m.seconds(0, 1, 1000), 1e-7 + 1000 * 1e-10, 1e-15);   // small piece
     EXPECT_NEAR(m.seconds(1, 0, 17000), 2e-6 + 17000 * 2e-10, 1e-15); // large piece
-    // An unmeasured or unbound placement takes the slowest class, never an optimistic one.
+    // An unmeasured or unbound placement takes the slowest class within a node, never an
+    // optimistic one, nor the network's.
     EXPECT_NEAR(m.seconds(-1, -1, 1000), 5e-6 + 1000 * 1e-9, 1e-15);
     EXPECT_NEAR(m.seconds(0, 7, 1000), 5e-6 + 1000 * 1e-9, 1e-15);
+    ASSERT_NE(m.class_named("other_node"), nullptr);
+    EXPECT_NEAR(m.class_named("other_node")->fit.predict(1000), 5e-5 + 1000 * 1e-9, 1e-15);
+    EXPECT_EQ(m.class_named("same_package"), nullptr);
     // A Sendrecv lasts as long as its longer direction; a missing side costs nothing.
     EXPECT_NEAR(m.sendrecv_seconds(0, 1, 17000, 1, 10), m.seconds(0, 1, 17000), 1e-15);
     EXPECT_NEAR(m.sendrecv_seconds(0, 1, -1, 1, 10), m.seconds(1, 0, 10), 1e-15);

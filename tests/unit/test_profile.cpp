@@ -61,3 +61,49 @@ TEST(Profile, MissingFigureIsAUsageError) {
     EXPECT_THROW(sphperf::model::build_profile({}, stream_report(), d, pingpong_report(), {}),
                  sphperf::UsageError);
 }
+
+namespace {
+nlohmann::json pair_of(const char *locality, double alpha) {
+    return {{"ranks", {0, 1}},
+            {"locality", locality},
+            {"breakpoint_bytes", 0},
+            {"pieces",
+             {{{"alpha_s", alpha},
+               {"beta_s_per_byte", 1e-10},
+               {"first_bytes", 1},
+               {"last_bytes", 1 << 20}}}}};
+}
+} // namespace
+
+// The inter-node ping-pong adds its class and pairs (without processing units, which mean
+// nothing across nodes); a second merge replaces the first; a report of one node is refused.
+TEST(Profile, InterNodeReportAddsItsClass) {
+    json intra = pingpong_report();
+    intra["pairs"] = {pair_of("same_l3", 1e-7)};
+    intra["rank_placement"] = {{{"rank", 0}, {"last_cpu", 0}, {"bound_to_one_core", true}},
+                               {{"rank", 1}, {"last_cpu", 1}, {"bound_to_one_core", true}}};
+    json p = sphperf::model::build_profile({}, stream_report(), dgemm_report(), intra, {});
+    json nodes = intra;
+    nodes["pairs"] = {pair_of("other_node", 5e-6)};
+    nodes["classes"] = {{"other_node", {{"pairs", 1}}}};
+    sphperf::model::add_inter_node(p, nodes, "nodes.json");
+    sphperf::model::add_inter_node(p, nodes, "nodes.json");
+    EXPECT_TRUE(p["hockney"]["classes"].contains("same_l3"));
+    ASSERT_TRUE(p["hockney"]["classes"].contains("other_node"));
+    EXPECT_DOUBLE_EQ(p["hockney"]["classes"]["other_node"]["pieces"][0]["alpha_s"].get<double>(),
+                     5e-6);
+    ASSERT_EQ(p["hockney"]["pairs"].size(), 2u);
+    EXPECT_EQ(p["hockney"]["pairs"][0]["pus"], (json{0, 1}));
+    EXPECT_FALSE(p["hockney"]["pairs"][1].contains("pus"));
+    EXPECT_TRUE(p["comm_classes"].contains("other_node"));
+    EXPECT_TRUE(p.contains("pingpong_nodes"));
+    try {
+        sphperf::model::add_inter_node(p, intra, "one-node.json");
+        ADD_FAILURE() << "a one-node report was merged";
+    } catch (const sphperf::UsageError &e) {
+        EXPECT_NE(std::string(e.what()).find("one-node.json has no pair of ranks on different "
+                                             "nodes"),
+                  std::string::npos)
+            << e.what();
+    }
+}

@@ -39,9 +39,13 @@ private:
     hwloc_bitmap_s *set_;
 };
 
+// machine: every processing unit of the node; binding: only those this process is bound to (a
+// Slurm allocation, taskset), so cores(), pus() and placement() stay inside them.
+enum class TopologyScope { machine, binding };
+
 class Topology {
 public:
-    Topology();
+    explicit Topology(TopologyScope scope = TopologyScope::machine);
     ~Topology();
     Topology(const Topology &) = delete;
     Topology &operator=(const Topology &) = delete;

@@ -22,9 +22,10 @@ public:
     // Reads the "hockney" section of a machine profile; throws UsageError naming the key.
     static CommModel from_profile(const nlohmann::json &machine);
 
-    // The link between two processing units (OS indices, -1 when unbound): the measured pair on
-    // exactly those units when there is one, otherwise the slowest measured locality class, so
-    // an unbound or unmeasured placement is never costed optimistically.
+    // The link between two processing units of one node (OS indices, -1 when unbound): the
+    // measured pair on exactly those units when there is one, otherwise the slowest measured
+    // locality class within a node, so an unbound or unmeasured placement is never costed
+    // optimistically (and never as a network hop).
     const Link &link(int pu_a, int pu_b) const;
     // One-way time of a message of `bytes` between two units.
     double seconds(int pu_a, int pu_b, double bytes) const {
@@ -37,6 +38,8 @@ public:
     const std::vector<Link> &pairs() const { return pairs_; }
     const std::vector<Link> &classes() const { return classes_; }
     const Link &slowest_class() const { return classes_[slowest_]; }
+    // The locality class of that name ("other_node", ...), or null when it was not measured.
+    const Link *class_named(const std::string &name) const;
 
 private:
     std::vector<Link> pairs_, classes_;

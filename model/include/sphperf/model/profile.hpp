@@ -28,4 +28,12 @@ nlohmann::json build_profile(nlohmann::json header, const nlohmann::json &stream
                              const std::vector<nlohmann::json> &dgemm_alternatives,
                              const std::vector<nlohmann::json> &exchanges = {});
 
+// Adds the inter-node class to a profile from a ping-pong report run with ranks on two or more
+// nodes (scripts/slurm/pingpong-nodes.sbatch): its other_node pairs join hockney/pairs (without
+// processing units: a PU number means nothing across nodes), its other_node class joins
+// hockney/classes and comm_classes, and the report is kept as "pingpong_nodes". Throws
+// UsageError naming `where` when the report has no pair of ranks on different nodes.
+void add_inter_node(nlohmann::json &profile, const nlohmann::json &pingpong_nodes,
+                    const std::string &where);
+
 } // namespace sphperf::model

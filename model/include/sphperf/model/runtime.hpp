@@ -91,6 +91,9 @@ struct PredictRequest {
     std::optional<double> end_time;
     int interval = 100;
     int cores = 0; // cores of the node (time-sharing above it); 0: from the model's machine
+    // Nodes the ranks span, in blocks as srun -N places them (the first P mod N nodes get one
+    // rank more); a shift between two nodes costs the machine's other_node Hockney class.
+    int nodes = 1;
     // Equal slabs (the thesis'), balanced ones re-cut every `rebalance_every` steps (0: every
     // interval) by `weights`, or both (one configuration each per rank count).
     std::vector<std::string> decompositions{"equal"};

@@ -34,6 +34,7 @@ struct RunConfig {
     double scale = 1, delta = 0.01, dt = 1e-4, cell_size = 0, tank_length = 0;
     std::int64_t steps = 0, fluid_particles = 0;
     int ranks = 1, threads = 1, interval = 1, cell_columns = 0;
+    int nodes = 1; // distinct nodes the ranks ran on (reports before multi-node runs: 1)
     std::string decomposition = "equal"; // reports before balanced slabs: equal
     double rebalance_s = 0;              // balanced: the re-cuts' time, slowest rank, summed
 };

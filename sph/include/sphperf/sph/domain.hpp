@@ -12,6 +12,7 @@
 
 #include <functional>
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -101,6 +102,8 @@ public:
     std::vector<double> gather(const std::vector<double> &v) const; // concatenated on rank 0
     void barrier() const;
     std::vector<int> gather_int(int v) const; // rank order, on every rank
+    // Every rank's string (rank order, on every rank); names longer than 255 bytes are cut.
+    std::vector<std::string> gather_string(const std::string &v) const;
 
     // Cumulative migration tallies, for naming the ranks when a particle goes missing.
     long long sent_east() const { return sent_east_; }

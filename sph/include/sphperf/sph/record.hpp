@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 namespace sphperf::sph {
@@ -82,10 +83,11 @@ struct RunRecord {
     std::vector<double> initial_columns; // fluid particles per cell column at t = 0
     std::vector<double> wall_columns;    // fixed wall particles per cell column (static)
     std::vector<int> placement_pus;      // first processing unit each rank is bound to, -1: none
-    std::vector<RebalanceRecord> rebalances; // balanced decomposition only
-    std::vector<int> final_cuts;             // the slabs at the end of the run
-    std::int64_t restarted_from_step = -1;   // the checkpoint's step, -1: not a restart
-    std::filesystem::path restarted_from;    // its directory
+    std::vector<std::string> placement_nodes; // node of each rank (SLURMD_NODENAME, else host)
+    std::vector<RebalanceRecord> rebalances;  // balanced decomposition only
+    std::vector<int> final_cuts;              // the slabs at the end of the run
+    std::int64_t restarted_from_step = -1;    // the checkpoint's step, -1: not a restart
+    std::filesystem::path restarted_from;     // its directory
 };
 
 } // namespace sphperf::sph
