@@ -263,6 +263,16 @@ def markdown(model, validation, args, out):
                          f"validation data. Untuned, the previous rule (pooled-one-percent) on the same runs: "
                          f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
                          f"(pooled-one-percent/validation.json).")
+        profiled = any(c.get("time_profile") for c in model["compute"])
+        other = os.path.join(args.dir, "no-profile", "validation.json")
+        if profiled and os.path.exists(other):
+            o = load(other)["summary"]["wall_abs_error"]
+            lines.append(f"Cost over Froude time (calibrate --time-profile froude: the fit times the "
+                         f"calibration runs' measured / fitted compute at the target's Froude time, no "
+                         f"descents term), chosen in session 16 after seeing the scale-1 dam-break errors: "
+                         f"**tuned**. Without it (the fit alone, descents read at simulated time, session 15's "
+                         f"model) on the same runs: median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
+                         f"(no-profile/validation.json).")
     if s["inline_comm_abs_error_per_interval"]:
         lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
                      f"measured gap): median per-interval |error| "

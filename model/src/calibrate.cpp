@@ -172,9 +172,12 @@ const Scored &select_terms(const std::vector<Scored> &ok, TermSelection rule) {
 // costs all come out non-negative is scored by leave-one-run-out cross-validation (with one
 // cost level per setup unless the rule pools them); the rule picks one, every score is reported.
 json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs,
-                 TermSelection rule) {
-    const std::vector<std::string> optional{"const", "owned",      "walls",
-                                            "ghost", "cell_moves", "descents"};
+                 TermSelection rule, TimeProfile profile) {
+    // With a Froude-time profile the flow's evolution is the profile's: no term that grows with
+    // simulated time (descents) competes with it.
+    std::vector<std::string> optional{"const", "owned", "walls", "ghost", "cell_moves"};
+    if (profile == TimeProfile::none)
+        optional.push_back("descents");
     json candidates = json::array();
     std::vector<Scored> ok;
     std::vector<double> y;
@@ -591,6 +594,84 @@ json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
 }
 } // namespace
 
+// Per setup, measured over fitted compute of the busy ranks through the calibration runs of one
+// grid and thread count, against Froude time (interval midpoint / sqrt(scale)): how the cost of
+// the fitted work changes as the flow evolves. Measured at half scale, the cost of a dam-break
+// interaction follows the flow's Froude time, not its simulated time (model/README.md, "Cost
+// over Froude time"). Each point is the ratio of sums over a window of neighbouring intervals
+// (all runs pooled, sorted by time), so one noisy interval does not set it.
+json compute_time_profile(const json &entry, const std::vector<SphRun> &runs) {
+    constexpr int half_window = 2; // intervals each side, per run
+    json out = json::object();
+    std::map<std::string, std::vector<const SphRun *>> by_setup;
+    for (const auto &r : runs)
+        by_setup[r.config.setup].push_back(&r);
+    for (const auto &[setup, rs] : by_setup) {
+        const LinearFit f = compute_cost_of(entry, setup);
+        struct Sample {
+            double t, measured, fitted;
+        };
+        std::vector<Sample> v;
+        for (const SphRun *r : rs)
+            for (const auto &iv : r->intervals) {
+                const auto fit = fitted_compute(f, iv);
+                Sample s{0, 0, 0};
+                double steps = 0;
+                for (std::size_t k = 0; k < iv.ranks.size(); ++k) {
+                    const auto &rk = iv.ranks[k];
+                    if (rk.steps < 1 || rk.field_mean <= 0)
+                        continue;
+                    steps = rk.steps;
+                    s.measured += rk.compute_s();
+                    s.fitted += fit[k] * rk.steps;
+                }
+                if (s.fitted <= 0)
+                    continue;
+                s.t = (iv.time_s - 0.5 * steps * r->config.dt) / std::sqrt(r->config.scale);
+                v.push_back(s);
+            }
+        if (v.empty() || rs.front()->intervals.empty())
+            continue;
+        std::sort(v.begin(), v.end(), [](const Sample &a, const Sample &b) { return a.t < b.t; });
+        // Rounds of one configuration share their interval times: one point each, pooled.
+        std::vector<Sample> merged;
+        for (const auto &x : v)
+            if (!merged.empty() && std::abs(x.t - merged.back().t) <= 1e-9 * std::abs(x.t)) {
+                merged.back().measured += x.measured;
+                merged.back().fitted += x.fitted;
+            } else {
+                merged.push_back(x);
+            }
+        v = std::move(merged);
+        std::size_t longest = 1;
+        for (const SphRun *r : rs)
+            longest = std::max(longest, r->intervals.size());
+        const auto n = static_cast<long>(v.size());
+        // +-2 intervals of a run, whatever number of runs with other times interleave.
+        const long w = half_window * std::max(1L, std::lround(static_cast<double>(n) /
+                                                               static_cast<double>(longest)));
+        json times = json::array(), factors = json::array();
+        for (long i = 0; i < n; ++i) {
+            double m = 0, fit = 0;
+            for (long k = std::max(0L, i - w); k <= std::min(n - 1, i + w); ++k) {
+                m += v[static_cast<std::size_t>(k)].measured;
+                fit += v[static_cast<std::size_t>(k)].fitted;
+            }
+            times.push_back(v[static_cast<std::size_t>(i)].t);
+            factors.push_back(m / fit);
+        }
+        double reach = 0;
+        for (const SphRun *r : rs)
+            reach = std::max(reach, r->intervals.back().time_s / std::sqrt(r->config.scale));
+        out[setup] = {{"froude_time_s", times},
+                      {"factor", factors},
+                      {"runs", rs.size()},
+                      {"end_froude_time_s", reach}};
+    }
+    return out;
+}
+
+
 json calibrate(const json &header, const json &machine, const std::vector<SphRun> &runs,
                const CalibrateOptions &opt) {
     if (runs.empty())
@@ -689,9 +770,22 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     model["regressions"] = regs;
     json compute = json::array();
     for (const auto &[key, pts] : by_grid_threads) {
-        json c = compute_fit(pts, runs, opt.term_selection);
+        json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile);
         c["grid"] = key.first;
         c["threads"] = key.second;
+        if (opt.time_profile == TimeProfile::froude) {
+            std::vector<SphRun> mine;
+            std::copy_if(own_cores.begin(), own_cores.end(), std::back_inserter(mine),
+                         [&](const SphRun &r) {
+                             return r.config.grid == key.first && r.config.threads == key.second;
+                         });
+            c["time_profile"] = compute_time_profile(c, mine);
+            c["time_profile"]["method"] =
+                "per setup, measured / fitted compute of the busy ranks of the calibration runs "
+                "by Froude time (interval midpoint / sqrt(scale)), rounds at the same times pooled, "
+                "ratio of sums over +-2 intervals; predict multiplies the fit by it at the "
+                "target's Froude time";
+        }
         compute.push_back(c);
     }
     if (compute.empty())

@@ -28,6 +28,11 @@ struct Costs {
     LinearFit pairs, exports, interactions, compute, cell_moves;
     std::optional<Disorder> disorder; // list and table: memory order against simulated time
     double delta = 0.01;              // target spacing (acoustic time of the disorder record)
+    // Measured / fitted compute of this setup by Froude time (calibrate --time-profile froude);
+    // empty: none. The target's scale turns its time into Froude time.
+    std::vector<std::pair<double, double>> profile;
+    double profile_end = 0; // Froude time the profile's runs reach
+    double scale = 1;
     CommModel comm;
     ExchangeModel exchange; // empty: the shifts are costed message by message with Hockney
     double record_bytes = 72;
@@ -64,6 +69,22 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             if (m.at("grid") == grid && m.at("threads") == threads) {
                 c.compute = compute_cost_of(m, setup);
                 found = true;
+                if (m.contains("time_profile") && m.at("time_profile").contains(setup)) {
+                    const auto &p = m.at("time_profile").at(setup);
+                    const auto t = p.at("froude_time_s").get<std::vector<double>>();
+                    const auto f = p.at("factor").get<std::vector<double>>();
+                    if (t.size() != f.size() || t.empty())
+                        throw UsageError("model compute " + grid + " time_profile/" + setup +
+                                         " has " + std::to_string(t.size()) + " times and " +
+                                         std::to_string(f.size()) + " factors");
+                    for (std::size_t k = 0; k < t.size(); ++k) {
+                        if (!std::isfinite(f[k]) || f[k] <= 0 || (k > 0 && t[k] < t[k - 1]))
+                            throw UsageError("model compute " + grid + " time_profile/" + setup +
+                                             " is not a positive factor over sorted times");
+                        c.profile.emplace_back(t[k], f[k]);
+                    }
+                    c.profile_end = p.at("end_froude_time_s").get<double>();
+                }
             }
         }
         if (!found)
@@ -132,6 +153,23 @@ std::pair<double, const char *> sharing_overhead(const Costs &c, int processes,
     if (set)
         return {ExchangeModel::round_overhead(*set, gap_s), "exchange benchmark"};
     return {1.0, "none (no measurement at this load)"};
+}
+
+// The calibration's measured / fitted compute at the Froude time of simulated time t (held at
+// the ends of the calibrated reach); 1 without a profile.
+double profile_factor(const Costs &c, double t) {
+    if (c.profile.empty())
+        return 1.0;
+    const double tf = t / std::sqrt(c.scale);
+    if (tf <= c.profile.front().first)
+        return c.profile.front().second;
+    for (std::size_t k = 1; k < c.profile.size(); ++k)
+        if (tf <= c.profile[k].first) {
+            const auto [t0, f0] = c.profile[k - 1];
+            const auto [t1, f1] = c.profile[k];
+            return t1 > t0 ? f0 + (f1 - f0) * (tf - t0) / (t1 - t0) : f1;
+        }
+    return c.profile.back().second;
 }
 
 // The node of every rank as srun -N places P ranks on N nodes: in blocks, the first P mod N
@@ -210,7 +248,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         std::vector<double> x;
         for (const auto &t : c.compute.terms)
             x.push_back(w.value(t));
-        s.compute_s = std::max(0.0, c.compute.predict(x));
+        s.compute_s = std::max(0.0, c.compute.predict(x)) * profile_factor(c, t);
         compute.push_back(s.compute_s);
         field.push_back(s.field);
     }
@@ -347,6 +385,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     const Costs costs = costs_of(model, req.setup, req.grid, req.threads);
     Costs c = costs;
     c.delta = req.delta;
+    c.scale = req.scale;
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
@@ -361,6 +400,13 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                        source_time(static_cast<double>(steps) * req.dt, trace.scale, req.scale));
     if (c.disorder)
         (void)c.disorder->at(static_cast<double>(steps) * req.dt, req.delta);
+    if (const double need = static_cast<double>(steps) * req.dt / std::sqrt(req.scale);
+        !c.profile.empty() && need > c.profile_end * (1 + 1e-9))
+        throw UsageError("the calibration's " + req.grid + " runs of " + req.setup +
+                         " reach Froude time " + std::to_string(c.profile_end) +
+                         " s (t / sqrt(scale)); " + std::to_string(steps) + " steps at scale " +
+                         std::to_string(req.scale) + " need " + std::to_string(need) +
+                         " s: calibrate with longer " + req.grid + " runs");
 
     if (req.nodes < 1)
         throw UsageError("--nodes " + std::to_string(req.nodes) + " is not a positive node count");
@@ -385,7 +431,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"trace", trace.source},
                            {"trace_scale", trace.scale},
                            {"trace_delta", trace.delta},
-                           {"jitter_k_sqrt_s", c.jitter_k_sqrt_s}};
+                           {"jitter_k_sqrt_s", c.jitter_k_sqrt_s},
+                           {"compute_time_profile", c.profile.empty() ? "none" : "froude"}};
     out["fluid_particles"] = probe.fluid_particles;
     out["request"]["decompositions"] = req.decompositions;
     out["request"]["balance_weights"] = {

@@ -19,6 +19,7 @@ struct Options {
     std::vector<std::filesystem::path> runs, predictions, measured;
     bool allow_other_host = false;
     std::string term_selection = "levelled-one-se";
+    std::string time_profile = "froude";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -49,6 +50,12 @@ int run(int argc, char **argv) {
                     "pooled-one-percent (one pooled fit, a term kept for 1 % better score)")
         ->capture_default_str()
         ->check(CLI::IsMember({"levelled-one-se", "pooled-one-percent"}));
+    cal->add_option("--time-profile", o.time_profile,
+                    "How the cost of an interaction evolves with the flow: froude (a profile of "
+                    "measured / fitted compute over Froude time, from the calibration runs) or "
+                    "none (the fit alone, with the memory-order term descents at simulated time)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"froude", "none"}));
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
@@ -128,9 +135,12 @@ int run(int argc, char **argv) {
         for (const auto &r : o.runs)
             runs.push_back(load_sph_run(r));
         const auto model = calibrate(report_header("sphmodel-calibration", topo), machine, runs,
-                                     {o.allow_other_host, o.term_selection == "pooled-one-percent"
-                                                              ? TermSelection::pooled_one_percent
-                                                              : TermSelection::levelled_one_se});
+                                     {o.allow_other_host,
+                                      o.term_selection == "pooled-one-percent"
+                                          ? TermSelection::pooled_one_percent
+                                          : TermSelection::levelled_one_se,
+                                      o.time_profile == "none" ? TimeProfile::none
+                                                               : TimeProfile::froude});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -599,3 +599,52 @@ TEST(Validate, FlagsAPlantedTwentyPercentError) {
     v = validate({}, {prediction(1.2)}, {other}, loose, exceeded);
     EXPECT_EQ(v["unmatched_runs"].size(), 1u);
 }
+
+// A cost per interaction planted as a function of Froude time, g(tF) = 1 + 2 tF, in two rounds
+// of a half-scale run (equal work every interval): the profile recovers g at each interval's
+// Froude time (interval midpoint / sqrt(0.5)), the window's ratio of sums being exact for a
+// line, and idle ranks stay out of it.
+TEST(TimeProfile, RecoversAPlantedCostOverFroudeTime) {
+    constexpr double per_interaction = 2e-8, scale = 0.5, dt = 1e-4;
+    constexpr int steps = 10, intervals = 30;
+    auto g = [](double tf) { return 1 + 2 * tf; };
+    std::vector<SphRun> runs(2);
+    for (auto &r : runs) {
+        r.config.setup = "dambreak";
+        r.config.grid = "table";
+        r.config.scale = scale;
+        r.config.dt = dt;
+        r.config.ranks = 2;
+        for (int k = 1; k <= intervals; ++k) {
+            IntervalStats iv;
+            iv.step = k * steps;
+            iv.time_s = iv.step * dt;
+            const double tf = (iv.time_s - 0.5 * steps * dt) / std::sqrt(scale);
+            RankStats busy, idle;
+            busy.steps = idle.steps = steps;
+            busy.field = busy.field_mean = 100;
+            busy.interactions = 4000;
+            busy.timers = {{"pairs_s", per_interaction * 4000 * steps * g(tf)},
+                           {"wait_s", 0.5}};
+            idle.timers = {{"grid_s", 1.0}}; // bookkeeping of a rank without water: not a cost
+            iv.ranks = {busy, idle};
+            r.intervals.push_back(iv);
+        }
+    }
+    nlohmann::json entry{
+        {"terms", {"interactions"}},
+        {"coefficients", {{"interactions", {{"value", per_interaction}, {"se", 0.0}}}}},
+        {"r2", 1.0},
+        {"rse", 0.0},
+        {"points", 60},
+        {"run_level", {{"factor", 1.0}, {"per_setup", nlohmann::json::object()}}}};
+    const auto p = compute_time_profile(entry, runs).at("dambreak");
+    const auto t = p.at("froude_time_s").get<std::vector<double>>();
+    const auto f = p.at("factor").get<std::vector<double>>();
+    ASSERT_EQ(t.size(), static_cast<std::size_t>(intervals)); // the rounds share their times
+    EXPECT_EQ(p.at("runs"), 2);
+    // Away from the ends (where the window is cut short) every factor is g at its time.
+    for (std::size_t k = 2; k + 2 < t.size(); ++k)
+        EXPECT_NEAR(f[k], g(t[k]), 1e-9) << "at Froude time " << t[k];
+    EXPECT_NEAR(t.back(), (intervals * steps - 0.5 * steps) * dt / std::sqrt(scale), 1e-12);
+}

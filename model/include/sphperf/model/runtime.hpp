@@ -64,12 +64,23 @@ LinearFit compute_cost_of(const nlohmann::json &entry, const std::string &setup)
 //   pooled_one_percent: one fit pooling the setups, a term kept when it lowers the held-out
 //     error by 1 % (sessions 9-12), kept to report beside it.
 enum class TermSelection { levelled_one_se, pooled_one_percent };
+// How the cost of an interaction changes as a flow evolves. froude: a profile over Froude time
+// (t / sqrt(scale)) of measured over fitted compute per setup, from the calibration runs, and no
+// time-varying term in the fit; none: the fit alone (with the memory-order term "descents" read
+// at simulated time, when selected).
+enum class TimeProfile { froude, none };
 struct CalibrateOptions {
     bool allow_other_host = false;
     TermSelection term_selection = TermSelection::levelled_one_se;
+    TimeProfile time_profile = TimeProfile::froude;
 };
 nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
+// The Froude-time profile of one compute entry (a fit of one grid and thread count, with its
+// run_level) over those runs: per setup {"froude_time_s": [...], "factor": [...], "runs": n},
+// measured / fitted compute of the busy ranks, rounds at the same times pooled, ratio of sums
+// over +-2 intervals.
+nlohmann::json compute_time_profile(const nlohmann::json &entry, const std::vector<SphRun> &runs);
 
 // Seconds per step one fluid particle and one wall particle add to a rank: the calibrated
 // compute fit of this grid and thread count, with the trace's interactions (and, for the
