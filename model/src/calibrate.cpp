@@ -171,8 +171,8 @@ const Scored &select_terms(const std::vector<Scored> &ok, TermSelection rule) {
 // Cost fit for one grid and thread count: every subset of terms containing "interactions" whose
 // costs all come out non-negative is scored by leave-one-run-out cross-validation (with one
 // cost level per setup unless the rule pools them); the rule picks one, every score is reported.
-json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs,
-                 TermSelection rule, TimeProfile profile) {
+json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs, TermSelection rule,
+                 TimeProfile profile) {
     // With a Froude-time profile the flow's evolution is the profile's: no term that grows with
     // simulated time (descents) competes with it.
     std::vector<std::string> optional{"const", "owned", "walls", "ghost", "cell_moves"};
@@ -648,8 +648,9 @@ json compute_time_profile(const json &entry, const std::vector<SphRun> &runs) {
             longest = std::max(longest, r->intervals.size());
         const auto n = static_cast<long>(v.size());
         // +-2 intervals of a run, whatever number of runs with other times interleave.
-        const long w = half_window * std::max(1L, std::lround(static_cast<double>(n) /
-                                                               static_cast<double>(longest)));
+        const long w =
+            half_window *
+            std::max(1L, std::lround(static_cast<double>(n) / static_cast<double>(longest)));
         json times = json::array(), factors = json::array();
         for (long i = 0; i < n; ++i) {
             double m = 0, fit = 0;
@@ -670,7 +671,6 @@ json compute_time_profile(const json &entry, const std::vector<SphRun> &runs) {
     }
     return out;
 }
-
 
 json calibrate(const json &header, const json &machine, const std::vector<SphRun> &runs,
                const CalibrateOptions &opt) {
@@ -782,7 +782,8 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
             c["time_profile"] = compute_time_profile(c, mine);
             c["time_profile"]["method"] =
                 "per setup, measured / fitted compute of the busy ranks of the calibration runs "
-                "by Froude time (interval midpoint / sqrt(scale)), rounds at the same times pooled, "
+                "by Froude time (interval midpoint / sqrt(scale)), rounds at the same times "
+                "pooled, "
                 "ratio of sums over +-2 intervals; predict multiplies the fit by it at the "
                 "target's Froude time";
         }

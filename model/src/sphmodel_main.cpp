@@ -134,13 +134,12 @@ int run(int argc, char **argv) {
         std::vector<SphRun> runs;
         for (const auto &r : o.runs)
             runs.push_back(load_sph_run(r));
-        const auto model = calibrate(report_header("sphmodel-calibration", topo), machine, runs,
-                                     {o.allow_other_host,
-                                      o.term_selection == "pooled-one-percent"
-                                          ? TermSelection::pooled_one_percent
-                                          : TermSelection::levelled_one_se,
-                                      o.time_profile == "none" ? TimeProfile::none
-                                                               : TimeProfile::froude});
+        const auto model =
+            calibrate(report_header("sphmodel-calibration", topo), machine, runs,
+                      {o.allow_other_host,
+                       o.term_selection == "pooled-one-percent" ? TermSelection::pooled_one_percent
+                                                                : TermSelection::levelled_one_se,
+                       o.time_profile == "none" ? TimeProfile::none : TimeProfile::froude});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

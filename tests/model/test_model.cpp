@@ -624,8 +624,7 @@ TEST(TimeProfile, RecoversAPlantedCostOverFroudeTime) {
             busy.steps = idle.steps = steps;
             busy.field = busy.field_mean = 100;
             busy.interactions = 4000;
-            busy.timers = {{"pairs_s", per_interaction * 4000 * steps * g(tf)},
-                           {"wait_s", 0.5}};
+            busy.timers = {{"pairs_s", per_interaction * 4000 * steps * g(tf)}, {"wait_s", 0.5}};
             idle.timers = {{"grid_s", 1.0}}; // bookkeeping of a rank without water: not a cost
             iv.ranks = {busy, idle};
             r.intervals.push_back(iv);
