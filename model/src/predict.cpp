@@ -472,11 +472,17 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                     most = std::max(most, n);
                 }
                 // A fresh run's first cut moves nothing (every rank builds the whole state).
+                // Over several nodes a moved cut may cross between them: the slower link.
+                const int per_node = (P + req.nodes - 1) / req.nodes;
                 const double secs =
                     step == 0 || P == 1
                         ? 0.0
-                        : c.comm.sendrecv_seconds(0, P * req.threads > c.cores ? -1 : req.threads,
-                                                  most * c.record_bytes, -1, -1);
+                        : std::max(c.comm.sendrecv_seconds(
+                                       0, per_node * req.threads > c.cores ? -1 : req.threads,
+                                       most * c.record_bytes, -1, -1),
+                                   req.nodes > 1 ? c.comm.class_named("other_node")
+                                                       ->fit.predict(most * c.record_bytes)
+                                                 : 0.0);
                 rebalance_total += secs;
                 const double mean = std::accumulate(cost.begin(), cost.end(), 0.0) / P;
                 rebalances.push_back(
