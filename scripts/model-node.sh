@@ -65,9 +65,10 @@ calibrate_round() { # calibrate_round LABEL
             --steps "$cs_steps" --interval "$c_interval"
     done
     # One rank x 2 threads (the cost per interaction at 2 threads is fitted on its own). Two
-    # threads on this 2-core node swing most (the two dam-break runs of session 16's main job
-    # took 0.4 and 0.7 s, and a median of two is their mean): the second round runs them twice,
-    # so the median of three sets the level. They cost about 1 s a round.
+    # threads on this 2-core node swing most (the two dam-break runs of session 16's first main
+    # job took 0.4 and 0.7 s, and a median of two is their mean): the second round runs them
+    # twice, so the median of three sets the level, for about 1 s. It did not remove the sorted
+    # 1 x 2 miss (+37.3 then +37.7 %): that one is a per-step cost (model/README.md, session 16).
     local label
     for label in "$1" $([ "$1" = b ] && echo c); do
         sph 1x2 "cal_dambreak_s0.5_sorted_t2_$label" --setup dambreak --scale 0.5 --grid sorted \
