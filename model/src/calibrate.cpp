@@ -630,7 +630,7 @@ json compute_time_profile(const json &entry, const std::vector<SphRun> &runs) {
                 s.t = (iv.time_s - 0.5 * steps * r->config.dt) / std::sqrt(r->config.scale);
                 v.push_back(s);
             }
-        if (v.empty() || rs.front()->intervals.empty())
+        if (v.empty())
             continue;
         std::sort(v.begin(), v.end(), [](const Sample &a, const Sample &b) { return a.t < b.t; });
         // Rounds of one configuration share their interval times: one point each, pooled.

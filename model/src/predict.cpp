@@ -269,10 +269,14 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     // it decides what a shift costs (exchange benchmark). Above the core count the ranks
     // take turns where the launcher put them, so a step spans at least the busiest core's.
     double busy = 0;
-    for (int n = 0; n < nodes; ++n)
+    for (int n = 0; n < nodes; ++n) {
+        if (node_shared(n)) {
+            busy = std::max(busy, node_step(n, 1.0));
+            continue;
+        }
         for (int r : on_node[static_cast<std::size_t>(n)])
-            busy = std::max(busy, node_shared(n) ? node_step(n, 1.0)
-                                                 : compute[static_cast<std::size_t>(r)]);
+            busy = std::max(busy, compute[static_cast<std::size_t>(r)]);
+    }
     const double gap = busy / shifts_per_step;
     const int most_on_a_node = (P + nodes - 1) / nodes;
     const ExchangeSet *set =
