@@ -261,8 +261,8 @@ def markdown(model, validation, args, out):
                          f"set within one standard error of the best cross-validation score), a rule picked in "
                          f"session 13 after comparing six rules on three main jobs' runs: **tuned** against "
                          f"validation data. Untuned, the previous rule (pooled-one-percent) on the same runs: "
-                         f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
-                         f"(pooled-one-percent/validation.json).")
+                         f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % over {o['count']} "
+                         f"configurations (pooled-one-percent/validation.json).")
         profiled = any(c.get("time_profile") for c in model["compute"])
         other = os.path.join(args.dir, "no-profile", "validation.json")
         if profiled and os.path.exists(other):
@@ -272,7 +272,8 @@ def markdown(model, validation, args, out):
                          f"descents term), chosen in session 16 after seeing the scale-1 dam-break errors: "
                          f"**tuned**. Without it (the fit alone, descents read at simulated time, session 15's "
                          f"model) on the same runs: median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
-                         f"(no-profile/validation.json).")
+                         f"over the {o['count']} configurations it can predict from these calibration runs "
+                         f"(no-profile/validation.json; refusals, if any, in no-profile/refused.txt).")
     if s["inline_comm_abs_error_per_interval"]:
         lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
                      f"measured gap): median per-interval |error| "
