@@ -4,7 +4,8 @@ and Cell+Sorted, on the still and dambreak setups at several scales, 1 and 2 thr
 run in a rotating order in each round so that drifts of the machine hit all alike.
 
     /usr/bin/python3 scripts/bench-grids.py [--rounds 3] [--grids list,table,sorted] [--scales 1,2,4]
-        [--particle-steps 3e6] [--out results/<host>/grid_benchmark.json] [--png FILE]
+        [--particle-steps 3e6] [--overlap-ranks 2] [--out results/<host>/grid_benchmark.json]
+        [--png FILE]
 
 Per run: wall time per step, ns per ordered pair (wall time / neighbour interactions, both
 physics stages and the grid included), particle-steps/s and peak RSS. Per configuration: the
@@ -13,6 +14,10 @@ round. Then per grid: the 2-thread speed-up (median over setups and scales) and 
 particle above the fixed cost (peak RSS slope between the smallest and largest scale). Steps per
 run: --particle-steps / particles, within [--min-steps, --max-steps]. Nothing else may run
 meanwhile. Runs with ranks x threads above the core count are marked oversubscribed.
+
+Then Cell+Sorted at --overlap-ranks ranks, 1 thread, blocking and with --overlap in alternating
+order per round: the exchanges' time per step (comm_s, mean over ranks), the share of it the
+overlap hides (1 - overlapped / blocking, per round), and the wall time per step of both.
 """
 import argparse
 import itertools
@@ -32,12 +37,12 @@ BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build
 GRIDS = ("list", "table", "sorted")
 
 
-def run_sph(grid, setup, scale, threads, ranks, steps, tmp):
+def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False):
     report = os.path.join(tmp, "sph.json")
     cmd = ["bash", os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(ranks), "-t", str(threads),
            os.path.join(BIN, "sph"), "--quiet", "--grid", grid, "--setup", setup, "--scale",
            str(scale), "--threads", str(threads), "--steps", str(steps), "--interval",
-           str(steps), "--report", report]
+           str(steps), "--report", report] + (["--overlap"] if overlap else [])
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"bench-grids: {' '.join(cmd)} failed: {r.stderr.strip()}")
@@ -48,7 +53,9 @@ def run_sph(grid, setup, scale, threads, ranks, steps, tmp):
             "ns_per_pair": 1e9 * ranks * threads / j["neighbour_interactions_per_s"],
             "particle_steps_per_s": j["particle_steps_per_s"],
             "peak_rss_bytes": max(j["peak_rss_bytes"]), "particles": particles,
-            "field": j["particles"]["field"]}
+            "field": j["particles"]["field"],
+            # The exchanges' own time (the wait for a slower neighbour apart), mean over ranks.
+            "comm_s_per_step": j["totals"]["timers"]["comm_s"]["avg"] / steps}
 
 
 def spread(values):
@@ -76,9 +83,13 @@ def main():
     ap.add_argument("--particle-steps", type=float, default=3e6, help="per run, default 3e6")
     ap.add_argument("--min-steps", type=int, default=40, help="default 40")
     ap.add_argument("--max-steps", type=int, default=400, help="default 400")
+    ap.add_argument("--overlap-ranks", type=int, default=2,
+                    help="ranks of the sorted --overlap comparison (default 2; 0: none)")
     ap.add_argument("--out", help="JSON output (default results/<host>/grid_benchmark.json)")
     ap.add_argument("--png", help="plot (default: the JSON's path with .png)")
     args = ap.parse_args()
+    if args.overlap_ranks < 0 or args.overlap_ranks == 1:
+        sys.exit(f"bench-grids: --overlap-ranks {args.overlap_ranks}: expected 0 (none) or >= 2")
     if args.rounds < 1 or args.min_steps < 1 or args.max_steps < args.min_steps:
         sys.exit(f"bench-grids: --rounds {args.rounds} must be >= 1 and 1 <= --min-steps "
                  f"{args.min_steps} <= --max-steps {args.max_steps}")
@@ -116,6 +127,18 @@ def main():
                 shift = (rnd + k) % len(grids)
                 for g in grids[shift:] + grids[:shift]:
                     results[c][g].append(run_sph(g, *c, steps[(c[0], c[1])], tmp))
+        # Blocking against overlapped exchanges, the same configuration, alternating order.
+        overlap_cases = sorted({(c[0], c[1]) for c in configs}) if args.overlap_ranks else []
+        overlap_runs = {c: {False: [], True: []} for c in overlap_cases}
+        for rnd in range(args.rounds):
+            for k, (setup, scale) in enumerate(overlap_cases):
+                print(f"round {rnd + 1}/{args.rounds}, overlap {k + 1}/{len(overlap_cases)}: "
+                      f"{setup} s{scale:g} at {args.overlap_ranks} ranks", file=sys.stderr,
+                      flush=True)
+                for ov in ((False, True) if (rnd + k) % 2 == 0 else (True, False)):
+                    overlap_runs[(setup, scale)][ov].append(
+                        run_sph("sorted", setup, scale, 1, args.overlap_ranks,
+                                steps[(setup, scale)], tmp, overlap=ov))
 
     rows = []
     print(f"\n{'setup':9s} {'scale':>5s} {'thr':>3s} {'rk':>3s} {'particles':>9s} {'steps':>5s} "
@@ -181,10 +204,34 @@ def main():
             parts.append(f"bytes/particle above fixed {e['bytes_per_particle_above_fixed']['median']:.0f}")
         print(f"{g:6s}: " + ", ".join(parts))
 
+    overlap_rows = []
+    if overlap_cases:
+        print(f"\nCell+Sorted at {args.overlap_ranks} ranks: exchanges per step, blocking vs --overlap")
+        print(f"{'setup':9s} {'scale':>5s} {'blocking us':>11s} {'overlap us':>10s} "
+              f"{'hidden':>22s} {'step ms (blk/ovl)':>18s}")
+    for (setup, scale) in overlap_cases:
+        blk, ovl = overlap_runs[(setup, scale)][False], overlap_runs[(setup, scale)][True]
+        row = {"setup": setup, "scale": scale, "ranks": args.overlap_ranks, "threads": 1,
+               "oversubscribed": args.overlap_ranks > cores, "steps": steps[(setup, scale)],
+               "rounds": args.rounds,
+               "blocking": {k: spread([r[k] for r in blk]) for k in ("comm_s_per_step", "step_s")},
+               "overlap": {k: spread([r[k] for r in ovl]) for k in ("comm_s_per_step", "step_s")},
+               # Per round: the share of the blocking exchanges' time the overlapped run exposes
+               # no more (migration stays blocking in both).
+               "hidden_fraction": spread([1 - o["comm_s_per_step"] / b["comm_s_per_step"]
+                                          for b, o in zip(blk, ovl) if b["comm_s_per_step"] > 0])}
+        overlap_rows.append(row)
+        h = row["hidden_fraction"]
+        print(f"{setup:9s} {scale:5g} {row['blocking']['comm_s_per_step']['median'] * 1e6:11.2f} "
+              f"{row['overlap']['comm_s_per_step']['median'] * 1e6:10.2f} "
+              f"{100 * h['median']:6.1f} % ({100 * h['min']:.0f}..{100 * h['max']:.0f} %) "
+              f"{row['blocking']['step_s']['median'] * 1e3:8.2f} / "
+              f"{row['overlap']['step_s']['median'] * 1e3:.2f}")
+
     commit = git_commit(ROOT)
-    report = {"schema": 2, "benchmark": "grid_comparison", "host": socket.gethostname(),
+    report = {"schema": 3, "benchmark": "grid_comparison", "host": socket.gethostname(),
               "git_commit": commit, "cores": cores, "particle_steps_per_run": args.particle_steps,
-              "results": rows, "summary": summary}
+              "results": rows, "summary": summary, "overlap": overlap_rows}
     write_json(out, report)
     plot(rows, grids, png)
 

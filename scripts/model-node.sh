@@ -127,6 +127,14 @@ validate_run 3 val_still_s1_sorted_r3 --setup still --grid sorted --steps "$vs_s
     --interval "$interval"
 validate_run 1x2 val_dambreak_s1_sorted_t2 --setup dambreak --grid sorted --steps "$v_steps" \
     --interval "$interval"
+# Non-blocking ghost exchanges (sph --overlap), beside their blocking twins: the dam break's
+# sorted 2-rank run above, and the still tank, where both ranks compute and send large ghosts.
+validate_run 2 val_dambreak_s1_sorted_overlap_r2 --setup dambreak --grid sorted --overlap \
+    --steps "$v_steps" --interval "$interval"
+validate_run 2 val_still_s1_sorted_r2 --setup still --grid sorted --steps "$vs_steps" \
+    --interval "$interval"
+validate_run 2 val_still_s1_sorted_overlap_r2 --setup still --grid sorted --overlap \
+    --steps "$vs_steps" --interval "$interval"
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
 # model_and_validate DIR RULE PROFILE: calibrate with the compute-cost term rule RULE and the
@@ -166,7 +174,11 @@ model_and_validate() {
     predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps "$vs_steps"
     predict still_s1_list --setup still --grid list --scale 1 --ranks 2 --steps "$vs_steps"
     predict dambreak_s1_sorted --setup dambreak --grid sorted --scale 1 --ranks 2 --steps "$v_steps"
-    predict still_s1_sorted --setup still --grid sorted --scale 1 --ranks 3 --steps "$vs_steps"
+    predict still_s1_sorted --setup still --grid sorted --scale 1 --ranks 2,3 --steps "$vs_steps"
+    predict dambreak_s1_sorted_overlap --setup dambreak --grid sorted --overlap --scale 1 --ranks 2 \
+        --steps "$v_steps"
+    predict still_s1_sorted_overlap --setup still --grid sorted --overlap --scale 1 --ranks 2 \
+        --steps "$vs_steps"
     predict dambreak_s1_sorted_t2 --threads 2 --setup dambreak --grid sorted --scale 1 --ranks 1 \
         --steps "$v_steps"
 

@@ -58,18 +58,20 @@ def scaling(predictions, validation, out):
     measured = {}
     for r in validation["configurations"]:
         measured[(r["setup"], r["grid"], r["scale"], r["ranks"], r["threads"],
-                  r.get("decomposition", "equal"))] = r["measured_wall_s"]
+                  r.get("decomposition", "equal"), r.get("overlap", False))] = r["measured_wall_s"]
     for p in predictions:
         q = p["request"]
         dec = p["configurations"][0].get("decomposition", "equal")
+        overlap = q.get("overlap", False)
         key = (f"{q['setup']} s{q['scale']:g} {q['grid']}" + ("" if dec == "equal" else f" {dec}")
+               + (" overlap" if overlap else "")
                + ("" if q["threads"] == 1 else f" x{q['threads']} threads"))
         ranks = [c["ranks"] for c in p["configurations"]]
         wall = [c["wall_s"] for c in p["configurations"]]
         # A single rank count is a marker, not an invisible one-point line.
         line, = axes[0].plot(ranks, wall, "-" if len(ranks) > 1 else "x", label=f"{key} predicted")
         mr = [(c["ranks"], measured.get((q["setup"], q["grid"], q["scale"], c["ranks"],
-                                         q["threads"], dec)))
+                                         q["threads"], dec, overlap)))
               for c in p["configurations"]]
         mr = [(r, w) for r, w in mr if w is not None]
         if mr:
@@ -165,7 +167,8 @@ def comm_error(validation, out):
         if r["ranks"] < 2 or not s:
             continue
         name = (f"{r['setup']} s{r['scale']:g} {r['grid']}"
-                + (" balanced" if r.get("decomposition") == "balanced" else "") + f" {r['ranks']}r")
+                + (" balanced" if r.get("decomposition") == "balanced" else "")
+                + (" overlap" if r.get("overlap") else "") + f" {r['ranks']}r")
         line, = ax.plot([e["time_s"] for e in s], [100 * e["model_error"] for e in s], "-", label=f"{name} model")
         if "inline_error" in s[0]:
             ax.plot([e["time_s"] for e in s], [100 * e.get("inline_error", 0) for e in s], ":",
@@ -239,7 +242,8 @@ def markdown(model, validation, args, out):
         ph = r["phases"]
         pct = lambda v: f"{100 * v:+.1f} %"
         lines.append(
-            f"| {r['setup']} | {r['grid']}{' balanced' if r.get('decomposition') == 'balanced' else ''} | "
+            f"| {r['setup']} | {r['grid']}{' balanced' if r.get('decomposition') == 'balanced' else ''}"
+            f"{' overlap' if r.get('overlap') else ''} | "
             f"{r['scale']:g} | {r['ranks']} x {r['threads']}"
             f"{' (shared)' if r['oversubscribed'] else ''} | {r['steps']} | {r['measured_wall_s']:.2f} | "
             f"{r['predicted_wall_s']:.2f} | **{pct(r['wall_error'])}** | {pct(ph['compute']['error'])} | "
@@ -285,6 +289,24 @@ def markdown(model, validation, args, out):
     if s["model_comm_abs_error_per_interval"]:
         lines.append(f"Communication, model prediction from the predicted workload: median per-interval "
                      f"|error| {100 * s['model_comm_abs_error_per_interval']['median']:.1f} %.")
+    # sph --overlap beside its blocking twin: the exchanges' exposed time, measured in both.
+    for r in validation["configurations"]:
+        if not r.get("overlap"):
+            continue
+        twin = next((b for b in validation["configurations"] if not b.get("overlap") and
+                     all(b[k] == r[k] for k in ("setup", "grid", "scale", "ranks", "threads", "steps"))
+                     and b.get("decomposition") == r.get("decomposition")), None)
+        c = r["phases"]["comm"]
+        text = (f"Overlap, {r['setup']} {r['grid']} s{r['scale']:g} {r['ranks']} x {r['threads']}: "
+                f"exposed communication {1e3 * c['measured_s']:.2f} ms (all ranks), predicted "
+                f"{1e3 * c['predicted_s']:.2f} ms by the model and {1e3 * c.get('inline_s', 0):.2f} ms "
+                f"inline; compute behind the transfers {c.get('overlap_window_s', 0):.2f} s, hiding "
+                f"{1e3 * c.get('hidden_inline_s', 0):.2f} ms of predicted transfer (T_overlap, inline)")
+        if twin:
+            b = twin["phases"]["comm"]["measured_s"]
+            text += (f"; the blocking run {1e3 * b:.2f} ms: {100 * (1 - c['measured_s'] / b):.0f} % "
+                     f"hidden (all three exchanges; migration stays blocking)" if b > 0 else "")
+        lines.append(text + ".")
     if s.get("peak_rss_abs_error"):
         m = validation["configurations"][0].get("peak_rss_bytes", {})
         lines.append(f"Peak RSS of the largest rank (memory model of model/README.md): |error| median "

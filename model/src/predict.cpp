@@ -37,6 +37,7 @@ struct Costs {
     ExchangeModel exchange; // empty: the shifts are costed message by message with Hockney
     double record_bytes = 72;
     int cores = 1;
+    bool overlap = false; // sph --overlap: ghosts and densities behind the interior columns
     // Time-sharing overhead measured on the app's own calibration runs, by load (ranks x
     // threads / cores); a load it did not run falls back to the exchange benchmark's.
     std::map<double, double> sharing;
@@ -316,7 +317,22 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
             // A shift that leaves the node lasts at least its network messages.
             return crosses ? std::max(measured, hockney) : measured;
         };
-        s.comm_s = exchange(0.0) + exchange(c.record_bytes) + exchange(density_bytes);
+        // --overlap: the ghost and density exchanges run behind the interior columns of a
+        // stage (about a third of the step's compute, as the gap). Exposed stays what no
+        // overlap hides, the rank taking in each received payload (its one-way Hockney
+        // time), or the shift's cost beyond the compute behind it (as sph --machine costs it).
+        auto overlapped = [&](double per_particle) {
+            double exposed = 0;
+            if (west)
+                exposed += message(r - 1, r, in_from_west * per_particle);
+            if (east)
+                exposed += message(r + 1, r, in_from_east * per_particle);
+            const double full = std::max(exchange(per_particle), exposed);
+            return std::max(exposed, full - s.compute_s / shifts_per_step);
+        };
+        s.comm_s =
+            exchange(0.0) + (c.overlap ? overlapped(c.record_bytes) + overlapped(density_bytes)
+                                       : exchange(c.record_bytes) + exchange(density_bytes));
     }
     // Within the cores the step lasts as long as the slowest rank's compute + communication,
     // each compute with its step-to-step jitter: the expected maximum, not the largest mean.
@@ -390,6 +406,10 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     Costs c = costs;
     c.delta = req.delta;
     c.scale = req.scale;
+    if (req.overlap && req.grid != "sorted")
+        throw UsageError("--overlap needs --grid sorted (as sph --overlap), not --grid " +
+                         req.grid);
+    c.overlap = req.overlap;
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
@@ -429,7 +449,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                       {"dt", req.dt},           {"steps", steps},
                       {"threads", req.threads}, {"interval", req.interval},
                       {"cores", c.cores},       {"ranks", req.ranks},
-                      {"nodes", req.nodes}};
+                      {"nodes", req.nodes},     {"overlap", req.overlap}};
     out["model_source"] = {{"git_commit", model.value("git_commit", "")},
                            {"timestamp", model.value("timestamp", "")},
                            {"trace", trace.source},

@@ -46,6 +46,9 @@ void from_json(const json &j, RankStats &r) {
         j.contains("comm_hockney_s") ? figure(j, "comm_hockney_s") : r.comm_predict_s;
     // Reports before the memory-order count: 0, as for the sorted grid (the term then drops).
     r.descents = j.contains("descents") ? figure(j, "descents") : 0.0;
+    r.overlap_s = j.contains("overlap_s") ? figure(j, "overlap_s") : 0.0;
+    r.hidden_predict_s =
+        j.contains("comm_hidden_predict_s") ? figure(j, "comm_hidden_predict_s") : 0.0;
     for (const auto &[k, v] : j.at("timers").items()) {
         r.timers[k] = v.get<double>();
         check_figure(r.timers[k], "timers/" + k);
@@ -78,6 +81,7 @@ void from_json(const json &j, RunConfig &c) {
     c.threads = j.at("threads").get<int>();
     c.interval = j.at("interval").get<int>();
     c.cell_columns = j.at("cell_columns").get<int>();
+    c.overlap = j.value("overlap", false); // reports before sph --overlap: blocking
     if (c.ranks < 1 || c.threads < 1 || c.cell_columns < 1 || c.steps < 0)
         throw json::other_error::create(501, "config holds a non-positive count", nullptr);
 }

@@ -112,6 +112,9 @@ int run(int argc, char **argv) {
                     "machine's other_node class: scripts/slurm/pingpong-nodes.sbatch)")
         ->capture_default_str()
         ->check(CLI::Range(1, 1 << 20));
+    pre->add_flag("--overlap", q.overlap,
+                  "As sph --overlap (Cell+Sorted only): ghost and density exchanges behind the "
+                  "interior columns");
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

@@ -215,6 +215,10 @@ void validate(const Config &cfg, const Geometry &geo, int ranks) {
     if (cfg.decomposition == Decomposition::equal && (cfg.rebalance_every != 0 || cfg.cost_model))
         throw UsageError(std::string(cfg.cost_model ? "--model" : "--rebalance-every") +
                          " needs --decomposition balanced");
+    if (cfg.overlap && cfg.grid != GridKind::sorted)
+        throw UsageError("--overlap needs --grid sorted (the stored-list grids search all "
+                         "neighbours at once, ghosts included), not --grid " +
+                         std::string(to_string(cfg.grid)));
     if (cfg.physics.shepard_every < 0)
         throw UsageError("--shepard-every " + std::to_string(cfg.physics.shepard_every) +
                          " must be >= 0 (0 disables the filter)");

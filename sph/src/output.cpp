@@ -127,6 +127,7 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     nlohmann::json j = report_header("sph", topo);
     j["config"] = {{"setup", to_string(c.setup)},
                    {"grid", to_string(c.grid)},
+                   {"overlap", c.overlap},
                    {"boundary", to_string(c.boundary)},
                    {"scale", c.scale},
                    {"delta", c.physics.delta},
@@ -223,6 +224,8 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"message_bytes", r.message_bytes},
                               {"comm_predict_s", r.comm_predict_s},
                               {"comm_hockney_s", r.comm_hockney_s},
+                              {"overlap_s", r.overlap_s},
+                              {"comm_hidden_predict_s", r.hidden_predict_s},
                               {"descents", r.descents},
                               {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)

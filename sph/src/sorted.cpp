@@ -2,50 +2,38 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 #include <type_traits>
+#include <utility>
 
 namespace sphperf::sph {
 
-void CellSorted::update(const Particles &p, const CellWindow &w) {
-    const std::size_t n = p.size();
-    cols_ = w.cols();
-    rows_ = w.rows() * rows_per_cell;
-    const double row_height = w.cell_size / rows_per_cell;
-    const int first_row = w.row_begin * rows_per_cell;
+std::uint32_t CellSorted::key_of(double x, double y) const {
+    const double row_height = window_.cell_size / rows_per_cell;
+    const int first_row = window_.row_begin * rows_per_cell;
     // Positions outside the window are filed in its edge rows, as CellWindow files them.
-    auto row_of = [&](double y) {
-        return std::clamp(static_cast<int>(std::floor(y / row_height)), first_row,
-                          first_row + rows_ - 1) -
-               first_row;
-    };
-    const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
-    owned_ = p.owned();
-    key_.resize(n);
-    start_.assign(cells + 1, 0);
-    for (std::size_t i = 0; i < n; ++i) {
-        const auto k = static_cast<std::uint32_t>((w.column_of(p.x[i]) - w.col_begin) * rows_ +
-                                                  row_of(p.y[i]));
-        key_[i] = k;
-        ++start_[k + 1];
-    }
-    for (std::size_t c = 0; c < cells; ++c)
-        start_[c + 1] += start_[c];
-    // Counting sort by cell, then by id within a cell (a few particles: insertion sort).
-    orig_.resize(n);
-    fill_.assign(start_.begin(), start_.end() - 1);
-    for (std::size_t i = 0; i < n; ++i)
-        orig_[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
+    const int row =
+        std::clamp(static_cast<int>(std::floor(y / row_height)), first_row, first_row + rows_ - 1) -
+        first_row;
+    return static_cast<std::uint32_t>((window_.column_of(x) - window_.col_begin) * rows_ + row);
+}
+
+// Within each cell of [first_cell, last_cell), by id (a few particles: insertion sort).
+void CellSorted::sort_cells_by_id(const Particles &p, std::size_t first_cell,
+                                  std::size_t last_cell) {
 #pragma omp parallel for schedule(dynamic, 64)
-    for (std::size_t c = 0; c < cells; ++c) {
+    for (std::size_t c = first_cell; c < last_cell; ++c) {
         const auto b = orig_.begin() + start_[c], e = orig_.begin() + start_[c + 1];
         for (auto it = b + (b != e); it < e; ++it)
             for (auto j = it; j > b && p.id[*(j - 1)] > p.id[*j]; --j)
                 std::iter_swap(j - 1, j);
     }
-    for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
-        v->resize(n);
+}
+
+void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t to) {
 #pragma omp parallel for schedule(static)
-    for (std::size_t s = 0; s < n; ++s) {
+    for (std::size_t s = from; s < to; ++s) {
         const std::uint32_t i = orig_[s];
         x_[s] = p.x[i];
         y_[s] = p.y[i];
@@ -55,9 +43,91 @@ void CellSorted::update(const Particles &p, const CellWindow &w) {
         fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
         remote_[s] = i < owned_ ? 0.0 : 1.0;
     }
-    moves_ = n; // every particle is filed anew each step
+}
+
+void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t west,
+                        std::size_t east) {
+    const std::size_t n = p.size();
+    window_ = w;
+    cols_ = w.cols();
+    rows_ = w.rows() * rows_per_cell;
+    west_ = west;
+    east_ = east;
+    local_ = n;
+    const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
+    const auto last_column = cells - static_cast<std::size_t>(rows_);
+    owned_ = p.owned();
+    key_.resize(n);
+    start_.assign(cells + 1, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t k = key_of(p.x[i], p.y[i]);
+        if ((west > 0 && k < static_cast<std::uint32_t>(rows_)) || (east > 0 && k >= last_column))
+            throw std::logic_error("sorted grid: particle " + std::to_string(p.id[i]) +
+                                   " sits in an edge column kept for ghosts");
+        key_[i] = k;
+        ++start_[k + 1];
+    }
+    for (std::size_t c = 0; c < cells; ++c)
+        start_[c + 1] += start_[c];
+    // The west ghosts' slots come first: every cell starts `west` positions later, and the
+    // edge columns kept for ghosts stay empty until add_ghosts.
+    for (auto &s : start_)
+        s += static_cast<std::uint32_t>(west);
+    // Counting sort by cell, then by id within a cell.
+    orig_.assign(n + west + east, 0);
+    fill_.assign(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < n; ++i)
+        orig_[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
+    sort_cells_by_id(p, 0, cells);
+    for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
+        v->resize(n + west + east);
+    copy_fields(p, west, west + n);
+    moves_ = n + west + east; // every particle is filed anew each step
     // Density and pressure are copied by refresh_density once they are final for the pass
     // that reads them (the density pass reads neither).
+}
+
+void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
+    const std::size_t n = p.size();
+    if (n - first != west_ + east_)
+        throw std::logic_error("sorted grid: " + std::to_string(n - first) +
+                               " ghosts arrived, slots were kept for " +
+                               std::to_string(west_ + east_));
+    const auto rows = static_cast<std::size_t>(rows_);
+    const auto cells = static_cast<std::size_t>(cols_) * rows;
+    const std::size_t base[2] = {0, west_ + local_}; // the west and east blocks
+    const std::size_t cell0[2] = {0, cells - rows};
+    // Per block: members per row, then positions (cells of a column are its rows).
+    std::vector<std::uint32_t> count[2] = {std::vector<std::uint32_t>(rows + 1, 0),
+                                           std::vector<std::uint32_t>(rows + 1, 0)};
+    for (std::size_t i = first; i < n; ++i) {
+        const std::uint32_t k = key_of(p.x[i], p.y[i]);
+        const int b = k < rows ? 0 : (k >= cell0[1] ? 1 : -1);
+        if (b < 0 || (b == 0) != (i < first + west_))
+            throw std::logic_error("sorted grid: ghost " + std::to_string(p.id[i]) +
+                                   " lands outside its edge column");
+        ++count[b][k - cell0[b] + 1];
+    }
+    // A side without ghosts keeps its column as update() filed it (walls, mirrors).
+    const std::size_t slots[2] = {west_, east_};
+    for (int b = 0; b < 2; ++b) {
+        for (std::size_t r = 0; r < rows; ++r)
+            count[b][r + 1] += count[b][r];
+        if (slots[b] > 0)
+            for (std::size_t r = 0; r <= rows; ++r)
+                start_[cell0[b] + r] = static_cast<std::uint32_t>(base[b] + count[b][r]);
+    }
+    for (std::size_t i = first; i < n; ++i) {
+        const std::uint32_t k = key_of(p.x[i], p.y[i]);
+        const int b = k < rows ? 0 : 1;
+        orig_[base[b] + count[b][k - cell0[b]]++] = static_cast<std::uint32_t>(i);
+    }
+    if (west_ > 0)
+        sort_cells_by_id(p, 0, rows);
+    if (east_ > 0)
+        sort_cells_by_id(p, cells - rows, cells);
+    copy_fields(p, 0, west_);
+    copy_fields(p, west_ + local_, west_ + local_ + east_);
 }
 
 void CellSorted::refresh_density(const Particles &p) {
@@ -68,6 +138,16 @@ void CellSorted::refresh_density(const Particles &p) {
         rho_[s] = rho;
         p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
     }
+}
+
+void CellSorted::refresh_ghost_density(const Particles &p) {
+    for (const auto &[from, to] :
+         {std::pair{std::size_t{0}, west_}, std::pair{west_ + local_, west_ + local_ + east_}})
+        for (std::size_t s = from; s < to; ++s) {
+            const double rho = p.rho[orig_[s]];
+            rho_[s] = rho;
+            p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
+        }
 }
 
 CellSorted::View CellSorted::view() const {
@@ -115,13 +195,16 @@ void for_each_candidate(const CellSorted::View &v, int col, int row, Body &&body
     }
 }
 
-// Runs per_particle(view, sorted index, col, row) for every owned particle, cells shared out
-// dynamically (the water is not spread evenly over cells).
-template <class F> void for_each_owned(const CellSorted::View &v, F &&per_particle) {
+// Runs per_particle(view, sorted index, col, row) for every owned particle of the columns,
+// cells shared out dynamically (the water is not spread evenly over cells).
+template <class F>
+void for_each_owned(const CellSorted::View &v, ColumnSet columns, F &&per_particle) {
     const int cells = v.cols * v.rows;
 #pragma omp parallel for schedule(dynamic, 8)
     for (int cell = 0; cell < cells; ++cell) {
         const int col = cell / v.rows, row = cell % v.rows;
+        if (!columns.contains(col))
+            continue;
         for (std::size_t s = v.start[cell]; s < v.start[cell + 1]; ++s)
             if (v.orig[s] < v.owned)
                 per_particle(s, col, row);
@@ -130,6 +213,11 @@ template <class F> void for_each_owned(const CellSorted::View &v, F &&per_partic
 } // namespace
 
 void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double back) {
+    nb.counts = continuity_columns(p, nb, phys, back, ColumnSet{}).counts();
+}
+
+DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physics &phys,
+                                 double back, ColumnSet columns) {
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
@@ -138,6 +226,8 @@ void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double 
 #pragma omp parallel for schedule(dynamic, 8) reduction(+ : interactions, remote)
     for (int cell = 0; cell < cells; ++cell) {
         const int col = cell / v.rows, row = cell % v.rows;
+        if (!columns.contains(col))
+            continue;
         for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
             if (v.orig[i] >= v.owned)
                 continue;
@@ -178,19 +268,20 @@ void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double 
             remote += rem.total();
         }
     }
-    // Summed over owned i, the interactions count every pair of two owned particles twice and
-    // every pair with a ghost or mirror once: those are the pairs.
-    const auto all = static_cast<std::uint64_t>(interactions);
-    nb.counts = {(all + static_cast<std::uint64_t>(remote)) / 2, all};
+    return {static_cast<std::uint64_t>(interactions), static_cast<std::uint64_t>(remote)};
 }
 
 void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
     nb.grid->refresh_density(p);
+    momentum_columns(p, nb, phys, ColumnSet{});
+}
+
+void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, ColumnSet columns) {
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
     const double h = k.h, eta2 = 0.01 * h * h, visc_coef = -2 * phys.alpha * phys.c0 * h;
-    for_each_owned(v, [&](std::size_t i, int col, int row) {
+    for_each_owned(v, columns, [&](std::size_t i, int col, int row) {
         const std::uint32_t oi = v.orig[i];
         if (v.fluid[i] == 0) { // wall particles do not move
             p.ax[oi] = 0;
@@ -233,7 +324,7 @@ void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {
     const double r2max = phys.cell_size() * phys.cell_size();
     const double w0 = k.value(0.0);
     std::vector<double> filtered(p.owned(), 0.0);
-    for_each_owned(v, [&](std::size_t i, int col, int row) {
+    for_each_owned(v, ColumnSet{}, [&](std::size_t i, int col, int row) {
         if (v.fluid[i] == 0)
             return; // wall densities follow the continuity equation
         const double xi = v.x[i], yi = v.y[i];

@@ -319,6 +319,84 @@ TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
     EXPECT_GT(predicted, 0);
 }
 
+// sph --overlap: the counts ride on the handshake and the payloads are posted non-blocking, so
+// each rank sends one message per exchange fewer; the inline prediction says what the compute
+// behind them hid. The model predicts the exposed part only: less than the blocking exchanges.
+TEST(ModelCli, OverlapIsCountedInlineAndPredictedExposed) {
+    const auto &f = fixture();
+    const auto blocking = f.dir / "sorted2.json", overlapped = f.dir / "sorted2_overlap.json";
+    for (const auto &[path, extra] :
+         {std::pair{blocking, ""}, std::pair{overlapped, " --overlap"}}) {
+        const sphperf::testing::Run r =
+            run(mpirun(2) + bin("sph") +
+                " --quiet --setup still --grid sorted --scale 0.5 --steps 60 --interval 10 "
+                "--machine " +
+                f.machine.string() + " --report " + path.string() + extra);
+        ASSERT_EQ(r.code, 0) << r.err;
+    }
+    const auto j = load(overlapped);
+    double messages = 0, window = 0, hidden = 0, inline_s = 0;
+    for (const auto &iv : j["intervals"])
+        for (const auto &r : iv["ranks"]) {
+            messages += r["messages"].get<double>();
+            window += r["overlap_s"].get<double>();
+            hidden += r["comm_hidden_predict_s"].get<double>();
+            inline_s += r["comm_predict_s"].get<double>();
+        }
+    // Per rank and step: migration's count and payload, then one payload per overlapped exchange.
+    EXPECT_EQ(messages, 2 * 60 * (2 + 1 + 1));
+    EXPECT_GT(window, 0);
+    EXPECT_GT(hidden, 0);
+    EXPECT_GT(inline_s, 0);
+    EXPECT_TRUE(j["config"]["overlap"].get<bool>());
+
+    // The compute fit needs spread in the work: dam breaks at 1 and 2 ranks beside the tank.
+    std::string runs = blocking.string();
+    for (int ranks : {1, 2}) {
+        const auto path = f.dir / ("sorted_dambreak" + std::to_string(ranks) + ".json");
+        const sphperf::testing::Run d =
+            run(mpirun(ranks) + bin("sph") +
+                " --quiet --setup dambreak --grid sorted --scale 0.5 --steps 60 --interval 10 "
+                "--report " +
+                path.string());
+        ASSERT_EQ(d.code, 0) << d.err;
+        runs += " " + path.string();
+    }
+    const auto model = f.dir / "model_sorted.json";
+    sphperf::testing::Run r =
+        run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+            " --runs " + runs + " --out " + model.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    auto predict = [&](const std::string &extra, const std::string &name) {
+        const auto out = f.dir / name;
+        const sphperf::testing::Run p =
+            run(bin("sphmodel") + " predict --model " + model.string() +
+                " --setup still --grid sorted --scale 0.5 --ranks 2 --steps 60 --interval 10 " +
+                extra + " --out " + out.string());
+        EXPECT_EQ(p.code, 0) << p.err;
+        return load(out);
+    };
+    const auto pb = predict("", "pred_sorted.json"), po = predict("--overlap", "pred_overlap.json");
+    const double cb = pb["configurations"][0]["totals"]["comm_s"].get<double>();
+    const double co = po["configurations"][0]["totals"]["comm_s"].get<double>();
+    EXPECT_GT(co, 0);
+    EXPECT_LT(co, cb);
+    EXPECT_TRUE(po["request"]["overlap"].get<bool>());
+    // Validate pairs each run with its own prediction: by the overlap flag too.
+    const auto val = f.dir / "validation_overlap.json";
+    r = run(bin("sphmodel") + " validate --prediction " + (f.dir / "pred_sorted.json").string() +
+            " " + (f.dir / "pred_overlap.json").string() + " --measured " + blocking.string() +
+            " " + overlapped.string() + " --out " + val.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto v = load(val);
+    ASSERT_EQ(v["configurations"].size(), 2u);
+    for (const auto &c : v["configurations"]) {
+        const bool ov = c["overlap"].get<bool>();
+        EXPECT_EQ(c["phases"]["comm"]["predicted_s"].get<double>(), ov ? co : cb);
+        EXPECT_EQ(c["phases"]["comm"].contains("hidden_inline_s"), ov);
+    }
+}
+
 struct BadModelInput {
     const char *name, *args, *expect;
 };
@@ -387,6 +465,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadModelInput{"fewer_ranks_than_nodes",
                       "predict --model MODEL --scale 0.5 --ranks 1,2 --nodes 2 --steps 10",
                       "--ranks 1 is fewer than --nodes 2"},
+        BadModelInput{"overlap_without_sorted",
+                      "predict --model MODEL --scale 0.5 --ranks 2 --overlap --steps 10",
+                      "--overlap needs --grid sorted"},
         BadModelInput{"zero_nodes", "predict --model MODEL --scale 0.5 --nodes 0 --steps 10",
                       "--nodes"},
         BadModelInput{"negative_max_error",

@@ -250,6 +250,8 @@ INSTANTIATE_TEST_SUITE_P(
         SphBadInput{"decomposition", "--decomposition optimal --steps 1", "optimal"},
         SphBadInput{"rebalance_without_balanced", "--rebalance-every 10 --steps 1",
                     "--rebalance-every needs --decomposition balanced"},
+        SphBadInput{"overlap_without_sorted", "--overlap --grid table --steps 1",
+                    "--overlap needs --grid sorted"},
         SphBadInput{"rebalance_zero", "--decomposition balanced --rebalance-every 0 --steps 1",
                     "--rebalance-every: Value 0"},
         SphBadInput{"wall_weight_negative", "--decomposition balanced --wall-weight -1 --steps 1",

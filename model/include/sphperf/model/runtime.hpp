@@ -110,6 +110,9 @@ struct PredictRequest {
     std::vector<std::string> decompositions{"equal"};
     int rebalance_every = 0;
     ColumnWeights weights;
+    // sph --overlap (Cell+Sorted): the ghost and density exchanges run behind the interior
+    // columns; each rank pays its received payloads' one-way Hockney time (model/README.md).
+    bool overlap = false;
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);

@@ -15,6 +15,9 @@ struct RankStats {
     double interactions = 0, exported = 0, migrated = 0, cell_moves = 0, idle_s = 0;
     double messages = 0, message_bytes = 0, comm_predict_s = 0, comm_hockney_s = 0;
     double descents = 0; // neighbours found out of id order per step (the id sort's work)
+    // sph --overlap: compute run while ghost transfers were in flight, and the predicted
+    // transfer time it hid (inline, sph --machine); 0 in blocking runs.
+    double overlap_s = 0, hidden_predict_s = 0;
     std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
 
     double timer(const std::string &key) const;
@@ -37,6 +40,7 @@ struct RunConfig {
     int nodes = 1; // distinct nodes the ranks ran on (reports before multi-node runs: 1)
     std::string decomposition = "equal"; // reports before balanced slabs: equal
     double rebalance_s = 0;              // balanced: the re-cuts' time, slowest rank, summed
+    bool overlap = false;                // sph --overlap: non-blocking ghost exchanges
 };
 
 struct SphRun {

@@ -110,6 +110,7 @@ struct Config {
     int rebalance_every = 0;                         // steps; 0: the report interval
     std::optional<std::filesystem::path> cost_model; // model.json for cost-aware cuts
     BalanceWeights balance;
+    bool overlap = false; // non-blocking ghost exchanges behind the interior columns (sorted)
     Physics physics;
 
     std::int64_t total_steps() const;

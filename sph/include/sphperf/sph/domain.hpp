@@ -42,8 +42,16 @@ struct ExchangeCounts {
 // What this rank sent since the last take_tally(): messages, payload bytes, and, when costs
 // are attached, the predicted time of their transfer: per message by ping-pong Hockney (the
 // thesis' T_COMM_PREDICT), and per shift by the exchange benchmark (falls back to Hockney).
+// With --overlap also the compute that ran while transfers were in flight (`overlap_s`) and,
+// when costs are attached, the predicted part of those transfers it hid (`hidden_predict_s`).
 struct CommTally {
     double messages = 0, bytes = 0, hockney_s = 0, predicted_s = 0;
+    double overlap_s = 0, hidden_predict_s = 0;
+};
+
+// Ghosts on their way (--overlap): how many will arrive from each side.
+struct GhostsInFlight {
+    std::size_t from_west = 0, from_east = 0;
 };
 
 // One-way time of a message of `bytes` to or from a neighbour (west or east).
@@ -65,6 +73,12 @@ public:
         cost_east_ = std::move(east);
     }
     void attach_shift_cost(ShiftCost c) { shift_cost_ = std::move(c); }
+    // What an overlapped exchange cannot hide of a message received from the west and east
+    // neighbours.
+    void attach_overlap_cost(MessageCost west, MessageCost east) {
+        overlap_west_ = std::move(west);
+        overlap_east_ = std::move(east);
+    }
     CommTally take_tally() { return std::exchange(tally_, CommTally{}); }
     int west() const { return west_; }
     int east() const { return east_; }
@@ -93,6 +107,17 @@ public:
     // Sends the current density of the particles exported by the last exchange_ghosts, so the
     // ghosts match their owners after the owners advanced their density.
     void refresh_ghost_density(Particles &p);
+    // The same two exchanges split (--overlap): begin_ swaps the counts with the handshake and
+    // posts the payloads; the caller computes what needs no ghost; finish_ waits for them and
+    // lands them exactly where the blocking calls do. One exchange in flight at a time; its
+    // sends complete at the next begin_, or at complete_sends() (before the run ends).
+    GhostsInFlight begin_ghosts(const Particles &p);
+    ExchangeCounts finish_ghosts(Particles &p);
+    void begin_ghost_density(const Particles &p);
+    void finish_ghost_density(Particles &p);
+    void complete_sends();
+    // Where finish_ghosts put the ghosts: p[ghosts_begin(), p.size()).
+    std::size_t ghosts_begin() const { return ghosts_begin_; }
 
     // Collective helpers.
     double sum(double v) const;
@@ -115,18 +140,37 @@ private:
     template <class T> struct Received { std::vector<T> from_west, from_east; };
     template <class T>
     Received<T> shift(const std::vector<T> &to_west, const std::vector<T> &to_east, int tag);
+    // A shift in two halves: counts now, payloads posted; then the wait for them.
+    template <class T>
+    void post_shift(const std::vector<T> &to_west, const std::vector<T> &to_east, Received<T> &into,
+                    int tag);
+    void complete_shift(double payload_bytes);
+    // Packing of the ghost exchange, shared by the blocking and the split form.
+    void pack_ghosts(const Particles &p, std::vector<ParticleRecord> &to_west,
+                     std::vector<ParticleRecord> &to_east);
+    void land_ghosts(Particles &p, const Received<ParticleRecord> &in);
     void wait_for_neighbours(int tag);
     // One MPI_Sendrecv of raw bytes, timed as comm and tallied.
     void sendrecv(const void *out, int out_bytes, int dest, void *in, int in_bytes, int src,
                   int tag);
     PhaseTimers *timers_ = nullptr;
-    MessageCost cost_west_, cost_east_;
+    MessageCost cost_west_, cost_east_, overlap_west_, overlap_east_;
     ShiftCost shift_cost_;
     double last_shift_end_s_ = 0; // when this rank's previous shift ended (wall clock)
     double shift_hockney_s_ = 0;  // Hockney prediction of the current shift's messages
     CommTally tally_;
     std::vector<std::uint32_t> export_west_, export_east_; // indices sent by the last exchange
     std::size_t ghosts_begin_ = 0, ghosts_from_west_ = 0;  // where received ghosts landed
+    // The split exchange in flight: its buffers (alive until completed), requests, and when it
+    // was posted.
+    struct InFlight {
+        std::vector<ParticleRecord> to_west, to_east;
+        Received<ParticleRecord> ghosts;
+        std::vector<double> rho_to_west, rho_to_east;
+        Received<double> rho;
+        std::vector<MPI_Request> receives, sends;
+        double posted_s = 0, gap_s = 0, exposed_s = 0; // exposed_s: unhidden, predicted
+    } flight_;
     MPI_Comm comm_;
     Slab slab_;
     int west_ = MPI_PROC_NULL, east_ = MPI_PROC_NULL;

@@ -53,6 +53,8 @@ inline Acceleration momentum_term(const PairInput &in, const QuinticKernel &k, d
 
 // Pressure from density for every particle (Tait equation).
 void equation_of_state(Particles &p, const Physics &phys);
+// The same for particles [first, last) only.
+void equation_of_state(Particles &p, const Physics &phys, std::size_t first, std::size_t last);
 
 // Runs `term(sum, pair)` over the neighbours of every owned particle, then `finish(i, sum)`.
 template <class Sum, Neighbourhood N, class Term, class Finish>

@@ -14,28 +14,30 @@ namespace sphperf::sph {
 // One rank over one report interval. Counts are means per step unless noted.
 struct RankInterval {
     double steps = 0;
-    double field = 0;          // fluid particles owned at the end of the interval
-    double virtual_ = 0;       // mirror particles made (mirror) or wall particles owned (fixed)
-    double ghost = 0;          // ghost particles received
-    double pairs = 0;          // unordered interacting pairs found
-    double interactions = 0;   // ordered pairs (i, j) contributing to an owned particle i
-    double exported = 0;       // particles sent as ghosts
-    double migrated = 0;       // particles that left this rank, total over the interval
-    double cell_moves = 0;     // particles (re)filed in a cell
-    double idle_s = 0;         // time with no fluid particle to work on
-    double escaped = 0;        // fluid particles outside the tank (through a wall or the floor)
-    double reflected = 0;      // mirror boundary: particles reflected back at a wall, total
-    double field_mean = 0;     // fluid particles owned, mean over the interval's steps
-    double messages = 0;       // MPI messages sent, total (counts and payloads)
-    double message_bytes = 0;  // their payload bytes, total
-    double comm_predict_s = 0; // predicted time of those transfers (sph --machine), total
-    double comm_hockney_s = 0; // ... by ping-pong Hockney alone (thesis T_COMM_PREDICT)
-    double descents = 0;       // neighbours found right after one of larger id (id sort work):
-                               // grows as the particles' memory order decays; 0 for sorted
-    double rss_bytes = 0;      // resident set size at the interval's end (soak: stays flat)
+    double field = 0;            // fluid particles owned at the end of the interval
+    double virtual_ = 0;         // mirror particles made (mirror) or wall particles owned (fixed)
+    double ghost = 0;            // ghost particles received
+    double pairs = 0;            // unordered interacting pairs found
+    double interactions = 0;     // ordered pairs (i, j) contributing to an owned particle i
+    double exported = 0;         // particles sent as ghosts
+    double migrated = 0;         // particles that left this rank, total over the interval
+    double cell_moves = 0;       // particles (re)filed in a cell
+    double idle_s = 0;           // time with no fluid particle to work on
+    double escaped = 0;          // fluid particles outside the tank (through a wall or the floor)
+    double reflected = 0;        // mirror boundary: particles reflected back at a wall, total
+    double field_mean = 0;       // fluid particles owned, mean over the interval's steps
+    double messages = 0;         // MPI messages sent, total (counts and payloads)
+    double message_bytes = 0;    // their payload bytes, total
+    double comm_predict_s = 0;   // predicted time of those transfers (sph --machine), total
+    double comm_hockney_s = 0;   // ... by ping-pong Hockney alone (thesis T_COMM_PREDICT)
+    double descents = 0;         // neighbours found right after one of larger id (id sort work):
+                                 // grows as the particles' memory order decays; 0 for sorted
+    double rss_bytes = 0;        // resident set size at the interval's end (soak: stays flat)
+    double overlap_s = 0;        // --overlap: compute run while ghost transfers were in flight
+    double hidden_predict_s = 0; // ... and the predicted transfer time it hid (T_overlap)
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
 
-    static constexpr std::size_t fields = 19 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 21 + static_cast<std::size_t>(Phase::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

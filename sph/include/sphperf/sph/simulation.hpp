@@ -49,6 +49,9 @@ private:
     void write_checkpoint(std::int64_t step);
     void build_transients();
     void compute_forces();
+    // --overlap: ghosts and their densities travel while the columns that need none are
+    // computed; the same sums, in the same order, as build_transients() + compute_forces().
+    void compute_forces_overlapped() requires OverlapGrid<Grid>;
     void step(std::int64_t s);
     // Balanced decomposition: the cost of every column under the current weights (all ranks),
     // and the re-cut to the cuts that balance it, with the migrations it takes.
@@ -164,6 +167,59 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
     momentum(p_, nb_, phys_);
 }
 
+template <CellGrid Grid>
+void Simulation<Grid>::compute_forces_overlapped() requires OverlapGrid<Grid> {
+    {
+        ScopedPhase t(step_timers_, Phase::boundary);
+        last_mirrors_ = cfg_.boundary == BoundaryKind::mirror
+                            ? add_mirrors(p_, geo_, phys_, first_mirror_id_, mirror_sources_)
+                            : 0;
+    }
+    const GhostsInFlight coming = dom_.begin_ghosts(p_);
+    {
+        ScopedPhase t(step_timers_, Phase::grid);
+        grid_.update(p_, window_, coming.from_west, coming.from_east);
+    }
+    {
+        ScopedPhase t(step_timers_, Phase::pairs);
+        build_neighbours(grid_, p_, window_, phys_.cell_size(), nb_);
+    }
+    const ColumnSet inner = grid_.columns_without_ghosts(), edges = inner.complement();
+    const double back = 0.5 * cfg_.dt; // the rate at the middle of the drift (compute_forces)
+    DensityCounts counts;
+    {
+        ScopedPhase t(step_timers_, Phase::comp);
+        counts = continuity_columns(p_, nb_, phys_, back, inner);
+    }
+    const ExchangeCounts g = dom_.finish_ghosts(p_);
+    last_ghosts_ = g.received;
+    last_exported_ = g.sent;
+    const std::size_t first_ghost = dom_.ghosts_begin();
+    {
+        ScopedPhase t(step_timers_, Phase::grid);
+        grid_.add_ghosts(p_, first_ghost);
+    }
+    {
+        ScopedPhase t(step_timers_, Phase::comp);
+        counts += continuity_columns(p_, nb_, phys_, back, edges);
+        nb_.counts = counts.counts();
+        advance_density(p_, cfg_.dt);
+        refresh_mirrors(p_, p_.owned(), mirror_sources_);
+    }
+    dom_.begin_ghost_density(p_);
+    {
+        ScopedPhase t(step_timers_, Phase::comp);
+        equation_of_state(p_, phys_, 0, first_ghost);
+        grid_.refresh_density(p_); // the ghosts' entries are stale until their refresh below
+        momentum_columns(p_, nb_, phys_, inner);
+    }
+    dom_.finish_ghost_density(p_);
+    ScopedPhase t(step_timers_, Phase::comp);
+    equation_of_state(p_, phys_, first_ghost, p_.size());
+    grid_.refresh_ghost_density(p_);
+    momentum_columns(p_, nb_, phys_, edges);
+}
+
 template <CellGrid Grid> std::vector<double> Simulation<Grid>::column_costs() const {
     std::vector<double> cost(static_cast<std::size_t>(geo_.cell_columns), 0.0);
     for (std::size_t i = 0; i < p_.owned(); ++i)
@@ -235,8 +291,17 @@ template <CellGrid Grid> void Simulation<Grid>::step(std::int64_t s) {
     if (rebalance_due(s))
         rebalance(s);
     last_migrated_ = dom_.migrate(p_, [this](std::int64_t id) { grid_.forget(id); }).sent;
-    build_transients();
-    compute_forces();
+    bool overlapped = false;
+    if constexpr (OverlapGrid<Grid>) {
+        if (cfg_.overlap) {
+            compute_forces_overlapped();
+            overlapped = true;
+        }
+    }
+    if (!overlapped) {
+        build_transients();
+        compute_forces();
+    }
     ScopedPhase t(step_timers_, Phase::integrate);
     half_kick(p_, cfg_.dt);
 }
@@ -586,6 +651,8 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         acc_.message_bytes += tally.bytes;
         acc_.comm_predict_s += tally.predicted_s;
         acc_.comm_hockney_s += tally.hockney_s;
+        acc_.overlap_s += tally.overlap_s;
+        acc_.hidden_predict_s += tally.hidden_predict_s;
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)
             acc_.timers[k] += step_timers_.values()[k];
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)
@@ -604,6 +671,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         if (observe)
             observe(s, p_);
     }
+    dom_.complete_sends(); // --overlap leaves the last exchange's sends to complete
     dom_.barrier();
     record_.wall_s = wall_seconds() - start;
     progress.finish();

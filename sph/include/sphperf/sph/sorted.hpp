@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <array>
+#include <concepts>
 #include <cstdint>
 #include <string_view>
 #include <vector>
@@ -22,6 +23,15 @@
 namespace sphperf::sph {
 
 struct SortedNeighbours;
+
+// The window columns a physics pass covers: [first, last], or with `outside` every other one
+// (--overlap computes the columns that need no ghost while the ghosts travel, then the rest).
+struct ColumnSet {
+    int first = 0, last = 1 << 30;
+    bool outside = false;
+    bool contains(int col) const { return (col >= first && col <= last) != outside; }
+    ColumnSet complement() const { return {first, last, !outside}; }
+};
 
 class CellSorted {
 public:
@@ -43,7 +53,17 @@ public:
         std::size_t owned; // a sorted particle is owned when orig < owned
     };
 
-    void update(const Particles &p, const CellWindow &w); // sort and copy
+    void update(const Particles &p, const CellWindow &w) { update(p, w, 0, 0); } // sort, copy
+    // --overlap: sorts the particles present now and keeps `west` and `east` positions free at
+    // the two ends for the ghosts in flight, which can only land in the window's edge columns
+    // (so those hold nothing else); add_ghosts files them, p[first, p.size()), once they are
+    // here. The result is the layout update() gives with the ghosts present.
+    void update(const Particles &p, const CellWindow &w, std::size_t west, std::size_t east);
+    void add_ghosts(const Particles &p, std::size_t first);
+    // The columns whose particles and neighbours are all here while ghosts are pending.
+    ColumnSet columns_without_ghosts() const {
+        return {west_ > 0 ? 2 : 0, east_ > 0 ? cols_ - 3 : cols_ - 1, false};
+    }
     void remove_transient(const Particles &, const CellWindow &) {}
     void forget(std::int64_t) {}
     std::size_t last_moves() const { return moves_; }
@@ -59,12 +79,19 @@ public:
     // Copies density and P / rho^2, which the sort leaves out: they change between the sort and
     // the passes that read them (continuity, equation of state, Shepard).
     void refresh_density(const Particles &p);
+    // The same for the ghost positions only (their density came after the others').
+    void refresh_ghost_density(const Particles &p);
     View view() const;
 
 private:
     int first_sorted_cell(int window_cell) const {
         return (window_cell % cols_) * rows_ + (window_cell / cols_) * rows_per_cell;
     }
+    std::uint32_t key_of(double x, double y) const; // sorted cell of a position
+    void copy_fields(const Particles &p, std::size_t from, std::size_t to);
+    void sort_cells_by_id(const Particles &p, std::size_t first_cell, std::size_t last_cell);
+    CellWindow window_;
+    std::size_t west_ = 0, east_ = 0, local_ = 0; // ghost slots kept, particles sorted
     std::vector<double> x_, y_, vx_, vy_, rho_, p_over_rho2_, mass_, fluid_, remote_;
     std::vector<std::uint32_t> orig_, start_, key_, fill_;
     int cols_ = 0, rows_ = 0;
@@ -112,9 +139,38 @@ inline void build_neighbours(CellSorted &grid, const Particles &, const CellWind
     nb.grid = &grid;
 }
 
+// A grid that can sort before the ghosts arrive and compute by columns (--overlap).
+template <class G>
+concept OverlapGrid = requires(G g, const G cg, const Particles &p, const CellWindow &w,
+                               std::size_t n) {
+    g.update(p, w, n, n);
+    g.add_ghosts(p, n);
+    g.refresh_density(p);
+    g.refresh_ghost_density(p);
+    { cg.columns_without_ghosts() } -> std::same_as<ColumnSet>;
+};
+
 // The three drivers of the physics for Cell+Sorted (physics.hpp has them for stored lists).
 void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double back = 0);
 void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys);
+// The first two over the owned particles of some columns only (--overlap); each particle's
+// sum is the same as in the whole pass. continuity_columns returns the counts of its
+// particles (add the parts up); momentum_columns reads the sorted densities as they are
+// (refresh_density first).
+struct DensityCounts {
+    // Summed over owned i: every pair of two owned particles twice, every pair with a ghost or
+    // mirror once; `remote` counts the latter. The pairs are their half-sum.
+    std::uint64_t interactions = 0, remote = 0;
+    DensityCounts &operator+=(const DensityCounts &o) {
+        interactions += o.interactions;
+        remote += o.remote;
+        return *this;
+    }
+    PairCounts counts() const { return {(interactions + remote) / 2, interactions}; }
+};
+DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physics &phys,
+                                 double back, ColumnSet cols);
+void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, ColumnSet cols);
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys);
 
 } // namespace sphperf::sph
