@@ -116,6 +116,8 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     one_way(east_, west_, to_east, in.from_west);
     one_way(west_, east_, to_west, in.from_east);
     last_shift_end_s_ = wall_seconds();
+    if (tag != tag_migrate)
+        tally_.halo_s += last_shift_end_s_ - start;
     const double payload =
         static_cast<double>(sizeof(T) * std::max({to_east.size(), to_west.size(),
                                                   in.from_west.size(), in.from_east.size()}));
@@ -278,6 +280,7 @@ void Domain::post_shift(const std::vector<T> &to_west, const std::vector<T> &to_
     flight_.gap_s = last_shift_end_s_ > 0 ? start - last_shift_end_s_ : 0.0;
     in.from_west.resize(static_cast<std::size_t>(west_ == MPI_PROC_NULL ? 0 : from_w));
     in.from_east.resize(static_cast<std::size_t>(east_ == MPI_PROC_NULL ? 0 : from_e));
+    const double comm_start = wall_seconds();
     {
         MaybePhase t(timers_, Phase::comm);
         // A send completes only once the neighbour's MPI has taken it in (measured: an eager
@@ -306,6 +309,7 @@ void Domain::post_shift(const std::vector<T> &to_west, const std::vector<T> &to_
         post(true, to_east.data(), nullptr, to_east.size(), east_);
         post(true, to_west.data(), nullptr, to_west.size(), west_);
     }
+    tally_.halo_s += wall_seconds() - comm_start;
     // Hockney of the payloads as the blocking shift costs them: each direction the longer of
     // its send and its receive.
     auto one_way = [&](const MessageCost &to, double out, const MessageCost &from, double got,
@@ -342,6 +346,7 @@ void Domain::complete_shift(double payload_bytes) {
     }
     flight_.receives.clear();
     last_shift_end_s_ = wall_seconds();
+    tally_.halo_s += last_shift_end_s_ - flight_.posted_s - window;
     tally_.overlap_s += window;
     tally_.hockney_s += shift_hockney_s_;
     // What stays exposed, predicted: taking in the received payloads, each as long as a hot

@@ -226,6 +226,7 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"comm_hockney_s", r.comm_hockney_s},
                               {"overlap_s", r.overlap_s},
                               {"comm_hidden_predict_s", r.hidden_predict_s},
+                              {"halo_comm_s", r.halo_comm_s},
                               {"descents", r.descents},
                               {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)

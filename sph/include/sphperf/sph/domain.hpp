@@ -42,11 +42,14 @@ struct ExchangeCounts {
 // What this rank sent since the last take_tally(): messages, payload bytes, and, when costs
 // are attached, the predicted time of their transfer: per message by ping-pong Hockney (the
 // thesis' T_COMM_PREDICT), and per shift by the exchange benchmark (falls back to Hockney).
-// With --overlap also the compute that ran while transfers were in flight (`overlap_s`) and,
-// when costs are attached, the predicted part of those transfers it hid (`hidden_predict_s`).
+// halo_s: the part of the comm phase in the ghost and density exchanges (the ones --overlap
+// makes non-blocking; migration stays blocking). With --overlap also the compute that ran while
+// transfers were in flight (`overlap_s`) and, when costs are attached, the predicted part of those
+// transfers it hid (`hidden_predict_s`).
 struct CommTally {
     double messages = 0, bytes = 0, hockney_s = 0, predicted_s = 0;
     double overlap_s = 0, hidden_predict_s = 0;
+    double halo_s = 0; // the transfers of the ghost and density exchanges (part of comm)
 };
 
 // Ghosts on their way (--overlap): how many will arrive from each side.

@@ -35,9 +35,10 @@ struct RankInterval {
     double rss_bytes = 0;        // resident set size at the interval's end (soak: stays flat)
     double overlap_s = 0;        // --overlap: compute run while ghost transfers were in flight
     double hidden_predict_s = 0; // ... and the predicted transfer time it hid (T_overlap)
+    double halo_comm_s = 0;      // comm_s of the ghost and density exchanges (no migration)
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
 
-    static constexpr std::size_t fields = 21 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 22 + static_cast<std::size_t>(Phase::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };
