@@ -91,7 +91,18 @@ def main():
                     help="ranks of the sorted --overlap comparison (default 2; 0: none)")
     ap.add_argument("--out", help="JSON output (default results/<host>/grid_benchmark.json)")
     ap.add_argument("--png", help="plot (default: the JSON's path with .png)")
+    ap.add_argument("--plot-only", metavar="JSON",
+                    help="redraw the plot of an earlier run's JSON, run nothing")
     args = ap.parse_args()
+    if args.plot_only:
+        try:
+            old = json.load(open(args.plot_only))
+            rows, overlap_rows = old["results"], old.get("overlap", [])
+            grids = list(rows[0]["grids"]) if rows else []
+        except (OSError, ValueError, KeyError, IndexError) as e:
+            sys.exit(f"bench-grids: --plot-only {args.plot_only}: not a grid benchmark JSON ({e})")
+        plot(rows, grids, args.png or os.path.splitext(args.plot_only)[0] + ".png", overlap_rows)
+        return
     if args.overlap_ranks < 0 or args.overlap_ranks == 1:
         sys.exit(f"bench-grids: --overlap-ranks {args.overlap_ranks}: expected 0 (none) or >= 2")
     if args.rounds < 1 or args.min_steps < 1 or args.max_steps < args.min_steps:
@@ -243,15 +254,18 @@ def main():
               "git_commit": commit, "cores": cores, "particle_steps_per_run": args.particle_steps,
               "results": rows, "summary": summary, "overlap": overlap_rows}
     write_json(out, report)
-    plot(rows, grids, png)
+    plot(rows, grids, png, overlap_rows)
 
 
-def plot(rows, grids, png):
-    """ns per ordered pair per configuration and grid (1 rank), medians with min..max bars."""
+def plot(rows, grids, png, overlap_rows):
+    """ns per ordered pair per configuration and grid (1 rank), medians with min..max bars; and
+    the ghost and density exchanges per step, blocking against --overlap."""
     plt = pyplot("bench-grids")
     if plt is None:
         return
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    panels = 3 if overlap_rows else 2
+    fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.2))
+    axes[1].sharey(axes[0])
     for ax, t in zip(axes, (1, 2)):
         sel = [r for r in rows if r["threads"] == t and r["ranks"] == 1]
         width = 0.8 / max(1, len(grids))
@@ -268,6 +282,27 @@ def plot(rows, grids, png):
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_ylabel("ns per ordered pair x threads (wall, both stages)")
     axes[0].legend()
+    if overlap_rows:
+        ax = axes[2]
+        xs = range(len(overlap_rows))
+        for k, (mode, label) in enumerate((("blocking", "blocking"), ("overlap", "overlapped (sph --overlap)"))):
+            med = [1e6 * r[mode]["halo_comm_s_per_step"]["median"] for r in overlap_rows]
+            lo = [m - 1e6 * r[mode]["halo_comm_s_per_step"]["min"] for m, r in zip(med, overlap_rows)]
+            hi = [1e6 * r[mode]["halo_comm_s_per_step"]["max"] - m for m, r in zip(med, overlap_rows)]
+            ax.bar([x + (k - 0.5) * 0.4 for x in xs], med, 0.4, yerr=[lo, hi], capsize=2,
+                   label=label)
+        for x, r in zip(xs, overlap_rows):
+            top = 1e6 * max(r["blocking"]["halo_comm_s_per_step"]["max"],
+                            r["overlap"]["halo_comm_s_per_step"]["max"])
+            ax.annotate(f"{100 * r['hidden_fraction']['median']:.0f} %", (x, top), ha="center",
+                        va="bottom", fontsize=8)
+        ax.set_yscale("log")
+        ax.set_xticks(list(xs))
+        ax.set_xticklabels([f"{r['setup']}\ns{r['scale']:g}" for r in overlap_rows], fontsize=8)
+        ax.set_ylabel("ghost + density exchanges, us per step (log)")
+        ax.set_title(f"Cell+Sorted, {overlap_rows[0]['ranks']} ranks: hidden share above bars")
+        ax.grid(axis="y", alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left")
     fig.suptitle("Grid schemes: time per neighbour interaction (dashed: 10 ns target)")
     fig.tight_layout()
     fig.savefig(png, dpi=110)
