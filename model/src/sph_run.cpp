@@ -47,6 +47,7 @@ void from_json(const json &j, RankStats &r) {
     // Reports before the memory-order count: 0, as for the sorted grid (the term then drops).
     r.descents = j.contains("descents") ? figure(j, "descents") : 0.0;
     r.overlap_s = j.contains("overlap_s") ? figure(j, "overlap_s") : 0.0;
+    r.halo_comm_s = j.contains("halo_comm_s") ? figure(j, "halo_comm_s") : 0.0;
     r.hidden_predict_s =
         j.contains("comm_hidden_predict_s") ? figure(j, "comm_hidden_predict_s") : 0.0;
     for (const auto &[k, v] : j.at("timers").items()) {

@@ -60,7 +60,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         }
         const int P = m.config.ranks;
         double compute = 0, comm = 0, wait = 0, idle = 0, pairs = 0, exported = 0, inline_c = 0;
-        double window = 0, hidden = 0; // --overlap
+        double window = 0, hidden = 0, halo = 0; // --overlap; halo: ghost + density comm
         for (const auto &iv : m.intervals)
             for (const auto &r : iv.ranks) {
                 compute += r.compute_s();
@@ -71,6 +71,7 @@ json validate(const json &header, const std::vector<json> &predictions,
                 exported += r.exported * r.steps;
                 inline_c += r.comm_predict_s;
                 window += r.overlap_s;
+                halo += r.halo_comm_s;
                 hidden += r.hidden_predict_s;
             }
         const double steps = static_cast<double>(std::max<std::int64_t>(m.config.steps, 1));
@@ -84,6 +85,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         };
         json comm_phase = phase("comm_s", comm);
         comm_phase["inline_s"] = inline_c;
+        comm_phase["halo_measured_s"] = halo;
         if (m.config.overlap) {
             // The exchanges' exposed time is comm_s; what ran behind them, and how much of
             // their predicted transfer that hid (T_overlap, inline), all ranks summed.

@@ -82,6 +82,10 @@ void Domain::sendrecv(const void *out, int out_bytes, int dest, void *in, int in
         tally_.messages += 1;
         tally_.bytes += out_bytes;
     }
+    shift_hockney_s_ += sendrecv_hockney(dest, out_bytes, src, in_bytes);
+}
+
+double Domain::sendrecv_hockney(int dest, double out_bytes, int src, double in_bytes) const {
     // Both directions travel at once: the call lasts as long as the longer transfer.
     const MessageCost &to = dest == east_ ? cost_east_ : cost_west_;
     const MessageCost &from = src == east_ ? cost_east_ : cost_west_;
@@ -90,7 +94,7 @@ void Domain::sendrecv(const void *out, int out_bytes, int dest, void *in, int in
         t = to(out_bytes);
     if (src != MPI_PROC_NULL && from)
         t = std::max(t, from(in_bytes));
-    shift_hockney_s_ += t;
+    return t;
 }
 
 template <class T>
@@ -310,28 +314,16 @@ void Domain::post_shift(const std::vector<T> &to_west, const std::vector<T> &to_
         post(true, to_west.data(), nullptr, to_west.size(), west_);
     }
     tally_.halo_s += wall_seconds() - comm_start;
-    // Hockney of the payloads as the blocking shift costs them: each direction the longer of
-    // its send and its receive.
-    auto one_way = [&](const MessageCost &to, double out, const MessageCost &from, double got,
-                       int dest, int src) {
-        double t = 0;
-        if (dest != MPI_PROC_NULL && to)
-            t = to(out);
-        if (src != MPI_PROC_NULL && from)
-            t = std::max(t, from(got));
-        return t;
-    };
-    shift_hockney_s_ =
-        one_way(cost_east_, static_cast<double>(to_east.size() * sizeof(T)), cost_west_,
-                static_cast<double>(in.from_west.size() * sizeof(T)), east_, west_) +
-        one_way(cost_west_, static_cast<double>(to_west.size() * sizeof(T)), cost_east_,
-                static_cast<double>(in.from_east.size() * sizeof(T)), west_, east_);
+    // Hockney of the payloads as the blocking shift costs them.
+    auto bytes = [](const std::vector<T> &v) { return static_cast<double>(v.size() * sizeof(T)); };
+    shift_hockney_s_ = sendrecv_hockney(east_, bytes(to_east), west_, bytes(in.from_west)) +
+                       sendrecv_hockney(west_, bytes(to_west), east_, bytes(in.from_east));
     // What no overlap hides: this rank takes in each received payload itself.
     flight_.exposed_s = 0;
     if (overlap_west_ && west_ != MPI_PROC_NULL)
-        flight_.exposed_s += overlap_west_(static_cast<double>(in.from_west.size() * sizeof(T)));
+        flight_.exposed_s += overlap_west_(bytes(in.from_west));
     if (overlap_east_ && east_ != MPI_PROC_NULL)
-        flight_.exposed_s += overlap_east_(static_cast<double>(in.from_east.size() * sizeof(T)));
+        flight_.exposed_s += overlap_east_(bytes(in.from_east));
     if (!overlap_west_ && !overlap_east_)
         flight_.exposed_s = shift_hockney_s_;
     flight_.posted_s = wall_seconds();

@@ -18,6 +18,7 @@ struct RankStats {
     // sph --overlap: compute run while ghost transfers were in flight, and the predicted
     // transfer time it hid (inline, sph --machine); 0 in blocking runs.
     double overlap_s = 0, hidden_predict_s = 0;
+    double halo_comm_s = 0; // comm_s of the ghost and density exchanges (0 in older reports)
     std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
 
     double timer(const std::string &key) const;

@@ -153,6 +153,8 @@ private:
                      std::vector<ParticleRecord> &to_east);
     void land_ghosts(Particles &p, const Received<ParticleRecord> &in);
     void wait_for_neighbours(int tag);
+    // Hockney time of one MPI_Sendrecv to `dest` and from `src` (0 without costs attached).
+    double sendrecv_hockney(int dest, double out_bytes, int src, double in_bytes) const;
     // One MPI_Sendrecv of raw bytes, timed as comm and tallied.
     void sendrecv(const void *out, int out_bytes, int dest, void *in, int in_bytes, int src,
                   int tag);

@@ -47,6 +47,7 @@ private:
     void start_fresh();
     std::int64_t resume(const std::filesystem::path &dir); // returns the checkpoint's step
     void write_checkpoint(std::int64_t step);
+    void add_mirror_particles();
     void build_transients();
     void compute_forces();
     // --overlap: ghosts and their densities travel while the columns that need none are
@@ -122,14 +123,16 @@ template <CellGrid Grid> void Simulation<Grid>::load_initial() {
     record_.wall_particles = static_cast<std::int64_t>(walls.size());
 }
 
-// Mirror particles (mirror boundary) and ghosts from the neighbouring slabs.
+// Mirror particles (mirror boundary), then ghosts from the neighbouring slabs.
+template <CellGrid Grid> void Simulation<Grid>::add_mirror_particles() {
+    ScopedPhase t(step_timers_, Phase::boundary);
+    last_mirrors_ = cfg_.boundary == BoundaryKind::mirror
+                        ? add_mirrors(p_, geo_, phys_, first_mirror_id_, mirror_sources_)
+                        : 0;
+}
+
 template <CellGrid Grid> void Simulation<Grid>::build_transients() {
-    {
-        ScopedPhase t(step_timers_, Phase::boundary);
-        last_mirrors_ = cfg_.boundary == BoundaryKind::mirror
-                            ? add_mirrors(p_, geo_, phys_, first_mirror_id_, mirror_sources_)
-                            : 0;
-    }
+    add_mirror_particles();
     const ExchangeCounts g = dom_.exchange_ghosts(p_); // times its own wait, comm and pack
     last_ghosts_ = g.received;
     last_exported_ = g.sent;
@@ -169,12 +172,7 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
 
 template <CellGrid Grid>
 void Simulation<Grid>::compute_forces_overlapped() requires OverlapGrid<Grid> {
-    {
-        ScopedPhase t(step_timers_, Phase::boundary);
-        last_mirrors_ = cfg_.boundary == BoundaryKind::mirror
-                            ? add_mirrors(p_, geo_, phys_, first_mirror_id_, mirror_sources_)
-                            : 0;
-    }
+    add_mirror_particles();
     const GhostsInFlight coming = dom_.begin_ghosts(p_);
     {
         ScopedPhase t(step_timers_, Phase::grid);
