@@ -234,22 +234,18 @@ void attach_message_costs(Domain &domain, const std::filesystem::path &machine,
         });
     }
     const int me = pus[static_cast<std::size_t>(domain.rank())];
-    auto cost_to = [&](int neighbour) -> MessageCost {
+    // A message to (outgoing) or from a neighbour, costed on the link between the two units.
+    auto link = [&](int neighbour, bool outgoing) -> MessageCost {
         if (neighbour == MPI_PROC_NULL)
             return {};
         const int other = pus[static_cast<std::size_t>(neighbour)];
-        return [comm, me, other](double bytes) { return comm->seconds(me, other, bytes); };
+        const int a = outgoing ? me : other, b = outgoing ? other : me;
+        return [comm, a, b](double bytes) { return comm->seconds(a, b, bytes); };
     };
-    domain.attach_cost(cost_to(domain.west()), cost_to(domain.east()));
+    domain.attach_cost(link(domain.west(), true), link(domain.east(), true));
     // --overlap: a received payload costs its one-way Hockney time, exposed whatever the
     // compute behind it (sph/README.md).
-    auto from = [&](int neighbour) -> MessageCost {
-        if (neighbour == MPI_PROC_NULL)
-            return {};
-        const int other = pus[static_cast<std::size_t>(neighbour)];
-        return [comm, me, other](double bytes) { return comm->seconds(other, me, bytes); };
-    };
-    domain.attach_overlap_cost(from(domain.west()), from(domain.east()));
+    domain.attach_overlap_cost(link(domain.west(), false), link(domain.east(), false));
 }
 
 void print_summary(const nlohmann::json &r) {
