@@ -44,6 +44,12 @@ for grid in list table sorted; do
         --rebalance-every 50
 done
 sph 2 mirror_r2 --boundary mirror --steps 150
+# Non-blocking exchanges: their buffers must outlive the transfers (sends complete a step later).
+for r in 2 3; do
+    sph "$r" "sorted_overlap_r$r" --grid sorted --overlap --steps 150
+done
+sph 3 sorted_overlap_mirror_balanced_r3 --grid sorted --overlap --boundary mirror --steps 150 \
+    --decomposition balanced --rebalance-every 50
 sph 3 checkpoint_r3 --steps 100 --checkpoint "$scratch/ck" --decomposition balanced
 sph 2 restart_r2 --steps 200 --restart "$scratch/ck" --decomposition balanced
 "$build/bin/sphmodel" predict --model "$root/results/reference/vm/model.json" --setup dambreak \

@@ -64,6 +64,16 @@ INSTANTIATE_TEST_SUITE_P(
                       Identity{"list_4x1", "list", 4, 1}),
     [](const auto &info) { return info.param.name; });
 
+// --overlap with mirror walls (transient mirrors before the ghosts) and slabs re-cut mid-run
+// (sends still pending across a re-cut's migration): bitwise the blocking run.
+TEST(SphState, OverlapWithMirrorsAndRecutsIsTheBlockingRun) {
+    const auto dir = scratch("state_overlap_mirror");
+    const std::string args = "--scale 0.5 --steps 300 --interval 300 --grid sorted --boundary "
+                             "mirror --decomposition balanced --rebalance-every 50";
+    expect_same_particles(run_to_end(dir, "blocking", 3, 1, args),
+                          run_to_end(dir, "overlap", 3, 1, args + " --overlap"));
+}
+
 TEST(SphState, ListAndTableGridsGiveTheSameParticles) {
     const auto dir = scratch("state_grids");
     const std::string args = "--scale 0.5 --steps 300 --interval 300";
