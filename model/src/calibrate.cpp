@@ -600,12 +600,12 @@ json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
 // interaction follows the flow's Froude time, not its simulated time (model/README.md, "Cost
 // over Froude time"). Each point is the ratio of sums over a window of neighbouring intervals
 // (all runs pooled, sorted by time), so one noisy interval does not set it.
-json compute_time_profile(const json &entry, const std::vector<SphRun> &runs) {
+json compute_time_profile(const json &entry, const std::vector<const SphRun *> &runs) {
     constexpr int half_window = 2; // intervals each side, per run
     json out = json::object();
     std::map<std::string, std::vector<const SphRun *>> by_setup;
-    for (const auto &r : runs)
-        by_setup[r.config.setup].push_back(&r);
+    for (const SphRun *r : runs)
+        by_setup[r->config.setup].push_back(r);
     for (const auto &[setup, rs] : by_setup) {
         const LinearFit f = compute_cost_of(entry, setup);
         struct Sample {
@@ -774,18 +774,16 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
         c["grid"] = key.first;
         c["threads"] = key.second;
         if (opt.time_profile == TimeProfile::froude) {
-            std::vector<SphRun> mine;
-            std::copy_if(own_cores.begin(), own_cores.end(), std::back_inserter(mine),
-                         [&](const SphRun &r) {
-                             return r.config.grid == key.first && r.config.threads == key.second;
-                         });
+            std::vector<const SphRun *> mine;
+            for (const SphRun &r : own_cores)
+                if (r.config.grid == key.first && r.config.threads == key.second)
+                    mine.push_back(&r);
             c["time_profile"] = compute_time_profile(c, mine);
             c["time_profile"]["method"] =
                 "per setup, measured / fitted compute of the busy ranks of the calibration runs "
                 "by Froude time (interval midpoint / sqrt(scale)), rounds at the same times "
-                "pooled, "
-                "ratio of sums over +-2 intervals; predict multiplies the fit by it at the "
-                "target's Froude time";
+                "pooled, ratio of sums over +-2 intervals; predict multiplies the fit by it at "
+                "the target's Froude time";
         }
         compute.push_back(c);
     }

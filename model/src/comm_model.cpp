@@ -1,6 +1,7 @@
 #include "sphperf/model/comm_model.hpp"
 
 #include "sphperf/cli.hpp"
+#include "sphperf/model/interpolate.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -165,19 +166,6 @@ const ExchangeSet &ExchangeModel::set_for(int ranks, int threads, int cores) con
 }
 
 namespace {
-// Linear interpolation of y over x (sorted), held constant outside.
-double interpolate(const std::vector<std::pair<double, double>> &xy, double x) {
-    if (x <= xy.front().first)
-        return xy.front().second;
-    for (std::size_t i = 1; i < xy.size(); ++i)
-        if (x <= xy[i].first) {
-            const auto [x0, y0] = xy[i - 1];
-            const auto [x1, y1] = xy[i];
-            return x1 > x0 ? y0 + (y1 - y0) * (x - x0) / (x1 - x0) : y1;
-        }
-    return xy.back().second;
-}
-
 constexpr double smallest_gap_s = 1e-7; // gaps below a tenth of a microsecond are the same
 
 // y(gap) of one payload, interpolated in log(gap).

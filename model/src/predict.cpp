@@ -2,6 +2,7 @@
 // from the fitted compute model and the Hockney links, then the blocking exchange's wait, the
 // idle ranks, and time-sharing when ranks x threads exceed the cores.
 #include "sphperf/cli.hpp"
+#include "sphperf/model/interpolate.hpp"
 #include "sphperf/model/jitter.hpp"
 #include "sphperf/model/placement.hpp"
 #include "sphperf/model/runtime.hpp"
@@ -159,18 +160,7 @@ std::pair<double, const char *> sharing_overhead(const Costs &c, int processes,
 // The calibration's measured / fitted compute at the Froude time of simulated time t (held at
 // the ends of the calibrated reach); 1 without a profile.
 double profile_factor(const Costs &c, double t) {
-    if (c.profile.empty())
-        return 1.0;
-    const double tf = t / std::sqrt(c.scale);
-    if (tf <= c.profile.front().first)
-        return c.profile.front().second;
-    for (std::size_t k = 1; k < c.profile.size(); ++k)
-        if (tf <= c.profile[k].first) {
-            const auto [t0, f0] = c.profile[k - 1];
-            const auto [t1, f1] = c.profile[k];
-            return t1 > t0 ? f0 + (f1 - f0) * (tf - t0) / (t1 - t0) : f1;
-        }
-    return c.profile.back().second;
+    return c.profile.empty() ? 1.0 : interpolate(c.profile, t / std::sqrt(c.scale));
 }
 
 // The node of every rank as srun -N places P ranks on N nodes: in blocks, the first P mod N

@@ -100,8 +100,9 @@ void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
     // Per block: members per row, then positions (cells of a column are its rows).
     std::vector<std::uint32_t> count[2] = {std::vector<std::uint32_t>(rows + 1, 0),
                                            std::vector<std::uint32_t>(rows + 1, 0)};
+    key_.resize(n);
     for (std::size_t i = first; i < n; ++i) {
-        const std::uint32_t k = key_of(p.x[i], p.y[i]);
+        const std::uint32_t k = key_[i] = key_of(p.x[i], p.y[i]);
         const int b = k < rows ? 0 : (k >= cell0[1] ? 1 : -1);
         if (b < 0 || (b == 0) != (i < first + west_))
             throw std::logic_error("sorted grid: ghost " + std::to_string(p.id[i]) +
@@ -118,7 +119,7 @@ void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
                 start_[cell0[b] + r] = static_cast<std::uint32_t>(base[b] + count[b][r]);
     }
     for (std::size_t i = first; i < n; ++i) {
-        const std::uint32_t k = key_of(p.x[i], p.y[i]);
+        const std::uint32_t k = key_[i];
         const int b = k < rows ? 0 : 1;
         orig_[base[b] + count[b][k - cell0[b]]++] = static_cast<std::uint32_t>(i);
     }

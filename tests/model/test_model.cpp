@@ -637,7 +637,10 @@ TEST(TimeProfile, RecoversAPlantedCostOverFroudeTime) {
         {"rse", 0.0},
         {"points", 60},
         {"run_level", {{"factor", 1.0}, {"per_setup", nlohmann::json::object()}}}};
-    const auto p = compute_time_profile(entry, runs).at("dambreak");
+    std::vector<const SphRun *> pointers;
+    for (const auto &r : runs)
+        pointers.push_back(&r);
+    const auto p = compute_time_profile(entry, pointers).at("dambreak");
     const auto t = p.at("froude_time_s").get<std::vector<double>>();
     const auto f = p.at("factor").get<std::vector<double>>();
     ASSERT_EQ(t.size(), static_cast<std::size_t>(intervals)); // the rounds share their times

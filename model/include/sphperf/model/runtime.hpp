@@ -80,7 +80,8 @@ nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &mac
 // run_level) over those runs: per setup {"froude_time_s": [...], "factor": [...], "runs": n},
 // measured / fitted compute of the busy ranks, rounds at the same times pooled, ratio of sums
 // over +-2 intervals.
-nlohmann::json compute_time_profile(const nlohmann::json &entry, const std::vector<SphRun> &runs);
+nlohmann::json compute_time_profile(const nlohmann::json &entry,
+                                    const std::vector<const SphRun *> &runs);
 
 // Seconds per step one fluid particle and one wall particle add to a rank: the calibrated
 // compute fit of this grid and thread count, with the trace's interactions (and, for the
