@@ -219,6 +219,10 @@ void validate(const Config &cfg, const Geometry &geo, int ranks) {
         throw UsageError("--overlap needs --grid sorted (the stored-list grids search all "
                          "neighbours at once, ghosts included), not --grid " +
                          std::string(to_string(cfg.grid)));
+    if (cfg.reorder_every != 0 && cfg.grid != GridKind::sorted)
+        throw UsageError("--reorder-every needs --grid sorted (the stored-list grids keep "
+                         "indices across steps), not --grid " +
+                         std::string(to_string(cfg.grid)));
     if (cfg.physics.shepard_every < 0)
         throw UsageError("--shepard-every " + std::to_string(cfg.physics.shepard_every) +
                          " must be >= 0 (0 disables the filter)");

@@ -103,6 +103,12 @@ Config parse(int argc, char **argv) {
                  "Cell+Sorted: exchange ghosts and their densities non-blocking, computing the "
                  "columns that need no ghost while they travel (hidden time: overlap_s, "
                  "comm_hidden_predict_s)");
+    app.add_option("--reorder-every", cfg.reorder_every,
+                   "Cell+Sorted: steps between permuting the particles themselves into cell "
+                   "order (0: never; the grid sorts a copy every step either way, and the "
+                   "results are the same; measured slower on this problem, see sph/README.md)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1 << 30));
     app.add_flag("--quiet", cfg.quiet, "No progress line");
     parse_cli(app, argc, argv);
 

@@ -1,6 +1,7 @@
 #include "sphperf/sph/particles.hpp"
 
 #include <stdexcept>
+#include <string>
 
 namespace sphperf::sph {
 
@@ -88,6 +89,39 @@ void Particles::remove_owned(std::size_t i) {
     }
     --owned_;
     drop_transient(); // shrinks every array to owned_
+}
+
+namespace {
+template <class T>
+void gather(std::vector<T> &v, std::span<const std::uint32_t> order, std::vector<T> &scratch) {
+    // The buffer swapped in keeps v's capacity: transients appended next need no allocation.
+    scratch.reserve(v.capacity());
+    scratch.resize(order.size());
+    for (std::size_t k = 0; k < order.size(); ++k)
+        scratch[k] = v[order[k]];
+    v.swap(scratch);
+}
+} // namespace
+
+void Particles::permute(std::span<const std::uint32_t> order) {
+    if (size() != owned_)
+        throw std::logic_error("permute owned particles only while no transient ones exist");
+    if (order.size() != owned_)
+        throw std::logic_error("permute: an order of " + std::to_string(order.size()) +
+                               " positions for " + std::to_string(owned_) + " particles");
+    seen_.assign(owned_, 0);
+    for (std::size_t k = 0; k < order.size(); ++k) {
+        const std::uint32_t i = order[k];
+        if (i >= owned_ || seen_[i] || (i < fluid_) != (k < fluid_))
+            throw std::logic_error("permute: position " + std::to_string(k) + " takes particle " +
+                                   std::to_string(i) +
+                                   ", not a permutation keeping fluid before walls");
+        seen_[i] = 1;
+    }
+    for (auto *v : {&x, &y, &vx, &vy, &rho, &p, &mass, &ax, &ay, &drho})
+        gather(*v, order, scratch_);
+    gather(id, order, scratch_id_);
+    gather(kind, order, scratch_kind_);
 }
 
 } // namespace sphperf::sph

@@ -45,12 +45,38 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
     }
 }
 
-void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t west,
-                        std::size_t east) {
-    const std::size_t n = p.size();
+void CellSorted::set_window(const CellWindow &w) {
     window_ = w;
     cols_ = w.cols();
     rows_ = w.rows() * rows_per_cell;
+}
+
+void CellSorted::reorder(Particles &p, const CellWindow &w) {
+    set_window(w);
+    const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
+    key_.resize(p.owned());
+    for (std::size_t i = 0; i < p.owned(); ++i)
+        key_[i] = key_of(p.x[i], p.y[i]);
+    order_.resize(p.owned());
+    // A stable counting sort by cell of the fluid, then of the walls after them.
+    for (const auto &[first, last] :
+         {std::pair{std::size_t{0}, p.fluid()}, std::pair{p.fluid(), p.owned()}}) {
+        fill_.assign(cells + 1, 0);
+        for (std::size_t i = first; i < last; ++i)
+            ++fill_[key_[i] + 1];
+        fill_[0] = static_cast<std::uint32_t>(first);
+        for (std::size_t c = 0; c < cells; ++c)
+            fill_[c + 1] += fill_[c];
+        for (std::size_t i = first; i < last; ++i)
+            order_[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
+    }
+    p.permute(order_);
+}
+
+void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t west,
+                        std::size_t east) {
+    const std::size_t n = p.size();
+    set_window(w);
     west_ = west;
     east_ = east;
     local_ = n;

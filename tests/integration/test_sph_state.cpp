@@ -74,6 +74,19 @@ TEST(SphState, OverlapWithMirrorsAndRecutsIsTheBlockingRun) {
                           run_to_end(dir, "overlap", 3, 1, args + " --overlap"));
 }
 
+// Particles permuted into cell order every 7 steps at 1 and 3 ranks (the permutation meets
+// migration, mirrors and --overlap's ghost slots): bitwise the run that never permutes.
+TEST(SphState, ReorderedParticlesAreTheUnreorderedRun) {
+    const auto dir = scratch("state_reorder");
+    const std::string args =
+        "--scale 0.5 --steps 300 --interval 300 --grid sorted --boundary mirror";
+    const auto ref = run_to_end(dir, "plain", 1, 1, args);
+    expect_same_particles(ref, run_to_end(dir, "reorder_1x1", 1, 1, args + " --reorder-every 7"));
+    expect_same_particles(ref, run_to_end(dir, "reorder_3x1", 3, 1, args + " --reorder-every 7"));
+    expect_same_particles(
+        ref, run_to_end(dir, "reorder_overlap_2x1", 2, 1, args + " --reorder-every 1 --overlap"));
+}
+
 TEST(SphState, ListAndTableGridsGiveTheSameParticles) {
     const auto dir = scratch("state_grids");
     const std::string args = "--scale 0.5 --steps 300 --interval 300";

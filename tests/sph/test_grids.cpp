@@ -200,3 +200,51 @@ TEST(CellSorted, BranchFreeKernelIsTheQuinticKernel) {
         }
     }
 }
+
+// Particles::permute moves every array together and keeps fluid before walls; CellSorted's
+// reorder leaves the owned particles in cell order (walls after fluid) and the grid it then
+// builds finds the same pairs.
+TEST(CellSorted, ReorderPermutesEveryArrayIntoCellOrder) {
+    Particles p = random_configuration(11, 300, 0);
+    for (std::size_t i = 0; i < p.size(); ++i) {
+        p.vx[i] = 1000.0 + static_cast<double>(p.id[i]); // a field tied to its particle
+        p.ax[i] = -static_cast<double>(p.id[i]);
+    }
+    const PairSet expected = brute_force(p);
+    const std::size_t fluid = p.fluid();
+    CellSorted g;
+    g.reorder(p, window);
+    ASSERT_EQ(p.size(), 300u);
+    ASSERT_EQ(p.fluid(), fluid);
+    std::set<std::int64_t> ids;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+        ids.insert(p.id[i]);
+        EXPECT_EQ(p.vx[i], 1000.0 + static_cast<double>(p.id[i]));
+        EXPECT_EQ(p.ax[i], -static_cast<double>(p.id[i]));
+        EXPECT_EQ(p.kind[i] == Kind::fluid, i < fluid) << "fluid must stay before walls";
+    }
+    EXPECT_EQ(ids.size(), 300u);
+    // Cell order within each kind: the column never decreases, nor the row within a column.
+    auto cell_of = [](const Particles &q, std::size_t i) {
+        return std::pair{window.column_of(q.x[i]),
+                         static_cast<int>(std::floor(q.y[i] / (cell / CellSorted::rows_per_cell)))};
+    };
+    for (std::size_t i = 1; i < p.size(); ++i)
+        if (i != fluid)
+            EXPECT_LE(cell_of(p, i - 1), cell_of(p, i)) << "position " << i;
+    EXPECT_EQ(search(g, p), expected);
+}
+
+TEST(Particles, PermuteRefusesWhatIsNotAFluidFirstPermutation) {
+    Particles p = random_configuration(12, 10, 0); // ids 0 and 5 are walls, at positions 8, 9
+    std::vector<std::uint32_t> order{1, 0, 2, 3, 4, 5, 6, 7, 8, 9};
+    p.permute(order);
+    EXPECT_EQ(p.id[0], 2); // fluid ids 1, 2, 3, 4, 6, ... swapped in the first two places
+    auto bad = [&](std::vector<std::uint32_t> o) { EXPECT_THROW(p.permute(o), std::logic_error); };
+    bad({0, 1, 2, 3, 4, 5, 6, 7, 8});     // too short
+    bad({0, 0, 2, 3, 4, 5, 6, 7, 8, 9});  // a particle twice
+    bad({0, 1, 2, 3, 4, 5, 6, 8, 7, 9});  // a wall among the fluid
+    bad({0, 1, 2, 3, 4, 5, 6, 7, 8, 10}); // beyond the particles
+    p.add_transient(p.record(0));
+    bad({1, 0, 2, 3, 4, 5, 6, 7, 8, 9}); // transient indices would go stale
+}

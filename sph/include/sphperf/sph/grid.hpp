@@ -55,6 +55,13 @@ concept CellGrid = requires(G g, const G cg, const Particles &p, const CellWindo
     g.restore_state(std::vector<std::int64_t>{});
 };
 
+// A grid that can also put the owned particles themselves in its order (Particles::permute),
+// called after migration, when no transient particle exists (--reorder-every).
+template <class G>
+concept ReorderingGrid = requires(G g, Particles &p, const CellWindow &w) {
+    g.reorder(p, w);
+};
+
 // Cell+List: head[cell] and next[particle], rebuilt every step; lock-free parallel insertion.
 class CellList {
 public:

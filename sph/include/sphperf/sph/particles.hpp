@@ -43,12 +43,21 @@ public:
     void remove_owned(std::size_t i);
     ParticleRecord record(std::size_t i) const;
     void reserve(std::size_t n);
+    // Reorders the owned particles, every array: position k takes old particle order[k]. Only
+    // while no transient particles exist (their indices would go stale), and order must keep
+    // fluid before walls; anything else throws.
+    void permute(std::span<const std::uint32_t> order);
 
 private:
     void push(const ParticleRecord &r);
     void assign(std::size_t i, const ParticleRecord &r);
     std::size_t owned_ = 0;
     std::size_t fluid_ = 0;
+    // permute's buffers, kept: it runs every step or so.
+    std::vector<double> scratch_;
+    std::vector<std::int64_t> scratch_id_;
+    std::vector<Kind> scratch_kind_;
+    std::vector<std::uint8_t> seen_;
 };
 
 } // namespace sphperf::sph

@@ -289,6 +289,12 @@ template <CellGrid Grid> void Simulation<Grid>::step(std::int64_t s) {
     if (rebalance_due(s))
         rebalance(s);
     last_migrated_ = dom_.migrate(p_, [this](std::int64_t id) { grid_.forget(id); }).sent;
+    if constexpr (ReorderingGrid<Grid>) {
+        if (cfg_.reorder_every > 0 && s % cfg_.reorder_every == 0) {
+            ScopedPhase t(step_timers_, Phase::grid);
+            grid_.reorder(p_, window_);
+        }
+    }
     bool overlapped = false;
     if constexpr (OverlapGrid<Grid>) {
         if (cfg_.overlap) {
