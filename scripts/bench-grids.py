@@ -19,6 +19,11 @@ Then Cell+Sorted at --overlap-ranks ranks, 1 thread, blocking and with --overlap
 order per round: the exchanges' time per step (comm_s, mean over ranks), the share of it the
 overlap hides (1 - overlapped / blocking, per round) of the ghost and density exchanges (the
 ones it overlaps) and of all three (migration stays blocking), and the wall time per step.
+
+With --pysph, PySPH (scripts/pysph_dambreak.py: the same dam break, spacing, time step, support
+and viscosity) at each thread count, alternating with sph --grid sorted on the same case in
+every round: particle-steps/s of each, and sorted over PySPH per round. PySPH's WCSPH takes 2
+force evaluations per step, sph 1: both figures are given.
 """
 import argparse
 import itertools
@@ -62,6 +67,15 @@ def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False):
                                         for r in iv["ranks"]) / ranks / steps}
 
 
+def run_pysph(scale, threads, steps):
+    cmd = [sys.executable, os.path.join(ROOT, "scripts", "pysph_dambreak.py"), "--scale",
+           str(scale), "--threads", str(threads), "--steps", str(steps)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"bench-grids: {' '.join(cmd)} failed: {r.stderr.strip()}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
 def spread(values):
     return {"median": statistics.median(values), "min": min(values), "max": max(values)}
 
@@ -89,6 +103,10 @@ def main():
     ap.add_argument("--max-steps", type=int, default=400, help="default 400")
     ap.add_argument("--overlap-ranks", type=int, default=2,
                     help="ranks of the sorted --overlap comparison (default 2; 0: none)")
+    ap.add_argument("--pysph", action="store_true",
+                    help="also run PySPH on the dam break (install-deps.sh --with-reference-tools)")
+    ap.add_argument("--pysph-scale", type=float, default=1.0, help="its scale, default 1")
+    ap.add_argument("--pysph-steps", type=int, default=200, help="its timed steps, default 200")
     ap.add_argument("--out", help="JSON output (default results/<host>/grid_benchmark.json)")
     ap.add_argument("--png", help="plot (default: the JSON's path with .png)")
     ap.add_argument("--plot-only", metavar="JSON",
@@ -118,6 +136,13 @@ def main():
     scales = parse_list(args.scales, float, "scales")
     threads = parse_list(args.threads, int, "threads")
     ranks = parse_list(args.ranks, int, "ranks")
+    if args.pysph and subprocess.run([sys.executable, "-c", "import pysph"],
+                                     capture_output=True).returncode != 0:
+        sys.exit("bench-grids: --pysph: PySPH is not installed for " + sys.executable +
+                 "; run scripts/install-deps.sh --with-reference-tools")
+    if args.pysph and (not args.pysph_scale > 0 or args.pysph_steps < 1):
+        sys.exit(f"bench-grids: --pysph-scale {args.pysph_scale} must be > 0 and --pysph-steps "
+                 f"{args.pysph_steps} >= 1")
     if not os.access(os.path.join(BIN, "sph"), os.X_OK):
         sys.exit(f"bench-grids: {BIN}/sph missing; run scripts/build.sh first")
     out = args.out or os.path.join(ROOT, "results", socket.gethostname(), "grid_benchmark.json")
@@ -154,6 +179,18 @@ def main():
                     overlap_runs[(setup, scale)][ov].append(
                         run_sph("sorted", setup, scale, 1, args.overlap_ranks,
                                 steps[(setup, scale)], tmp, overlap=ov))
+        pysph_runs = {t: {"pysph": [], "sorted": []} for t in (threads if args.pysph else [])}
+        for rnd in range(args.rounds):
+            for k, t in enumerate(pysph_runs):
+                print(f"round {rnd + 1}/{args.rounds}, PySPH {k + 1}/{len(pysph_runs)}: dambreak "
+                      f"s{args.pysph_scale:g}, {t} thread(s)", file=sys.stderr, flush=True)
+                for code in (("pysph", "sorted") if (rnd + k) % 2 == 0 else ("sorted", "pysph")):
+                    if code == "sorted":
+                        pysph_runs[t][code].append(run_sph("sorted", "dambreak", args.pysph_scale,
+                                                           t, 1, args.pysph_steps, tmp))
+                    else:
+                        pysph_runs[t][code].append(run_pysph(args.pysph_scale, t,
+                                                             args.pysph_steps))
 
     rows = []
     print(f"\n{'setup':9s} {'scale':>5s} {'thr':>3s} {'rk':>3s} {'particles':>9s} {'steps':>5s} "
@@ -249,10 +286,36 @@ def main():
               f"{row['blocking']['step_s']['median'] * 1e3:8.2f} / "
               f"{row['overlap']['step_s']['median'] * 1e3:.2f}")
 
+    pysph_rows = []
+    for t, runs in pysph_runs.items():
+        row = {"setup": "dambreak", "scale": args.pysph_scale, "threads": t, "ranks": 1,
+               "steps": args.pysph_steps, "rounds": args.rounds,
+               "fluid": runs["pysph"][0]["fluid"],
+               "pysph": {"particle_steps_per_s": spread([r["particle_steps_per_s"]
+                                                         for r in runs["pysph"]]),
+                         "evaluations_per_step": 2},
+               "sorted": {"particle_steps_per_s": spread([r["particle_steps_per_s"]
+                                                          for r in runs["sorted"]]),
+                          "evaluations_per_step": 1},
+               "sorted_over_pysph": spread([s_["particle_steps_per_s"] / p["particle_steps_per_s"]
+                                            for s_, p in zip(runs["sorted"], runs["pysph"])])}
+        pysph_rows.append(row)
+    if pysph_rows:
+        print(f"\nPySPH (WCSPH, 2 evaluations per step) against sph --grid sorted (1), dambreak "
+              f"s{args.pysph_scale:g}, particle-steps/s:")
+        for row in pysph_rows:
+            p, q, r = (row["pysph"]["particle_steps_per_s"], row["sorted"]["particle_steps_per_s"],
+                       row["sorted_over_pysph"])
+            print(f"  {row['threads']} thread(s): PySPH {p['median']:.3g} ({p['min']:.3g}.."
+                  f"{p['max']:.3g}), sorted {q['median']:.3g}; sorted / PySPH {r['median']:.2f} "
+                  f"({r['min']:.2f}..{r['max']:.2f}) per step, {r['median'] / 2:.2f} per force "
+                  f"evaluation")
+
     commit = git_commit(ROOT)
-    report = {"schema": 3, "benchmark": "grid_comparison", "host": socket.gethostname(),
+    report = {"schema": 4, "benchmark": "grid_comparison", "host": socket.gethostname(),
               "git_commit": commit, "cores": cores, "particle_steps_per_run": args.particle_steps,
-              "results": rows, "summary": summary, "overlap": overlap_rows}
+              "results": rows, "summary": summary, "overlap": overlap_rows,
+              "pysph": pysph_rows}
     write_json(out, report)
     plot(rows, grids, png, overlap_rows)
 

@@ -3,7 +3,8 @@
 # CI and every fresh machine get their dependencies from here.
 set -euo pipefail
 # --with-reference-tools also installs likwid and NetPIPE, which scripts/compare-reference.py runs
-# beside ours; they are comparison tools, not dependencies of sphperf.
+# beside ours, and PySPH (with the Python headers its generated Cython needs), which
+# scripts/bench-grids.py --pysph runs; they are comparison tools, not dependencies of sphperf.
 # --with-fuzz also installs clang and its OpenMP runtime for the libFuzzer harnesses
 # (scripts/fuzz.sh); CI does not run them.
 # --with-slurm also installs Slurm (slurmctld, slurmd, srun/sbatch) and munge, for
@@ -23,7 +24,7 @@ packages=(
 
 for arg in "$@"; do
     case "$arg" in
-        --with-reference-tools) packages+=(likwid netpipe-openmpi) ;;
+        --with-reference-tools) packages+=(likwid netpipe-openmpi python3-pysph python3-dev) ;;
         --with-fuzz) packages+=(clang libomp-dev) ;;
         --with-slurm) packages+=(slurm-wlm munge) ;;
         *)
