@@ -50,6 +50,8 @@ for r in 2 3; do
 done
 sph 3 sorted_overlap_mirror_balanced_r3 --grid sorted --overlap --boundary mirror --steps 150 \
     --decomposition balanced --rebalance-every 50
+# Particles permuted in place every step (scratch buffers swapped with the arrays).
+sph 3 sorted_reorder_mirror_r3 --grid sorted --reorder-every 1 --boundary mirror --steps 150
 sph 3 checkpoint_r3 --steps 100 --checkpoint "$scratch/ck" --decomposition balanced
 sph 2 restart_r2 --steps 200 --restart "$scratch/ck" --decomposition balanced
 "$build/bin/sphmodel" predict --model "$root/results/reference/vm/model.json" --setup dambreak \
