@@ -51,25 +51,29 @@ void CellSorted::set_window(const CellWindow &w) {
     rows_ = w.rows() * rows_per_cell;
 }
 
+void CellSorted::sort_by_key(std::size_t first, std::size_t last, std::size_t base,
+                             std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out) {
+    const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
+    starts.assign(cells + 1, 0);
+    for (std::size_t i = first; i < last; ++i)
+        ++starts[key_[i] + 1];
+    starts[0] = static_cast<std::uint32_t>(base);
+    for (std::size_t c = 0; c < cells; ++c)
+        starts[c + 1] += starts[c];
+    fill_.assign(starts.begin(), starts.end() - 1);
+    for (std::size_t i = first; i < last; ++i)
+        out[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
+}
+
 void CellSorted::reorder(Particles &p, const CellWindow &w) {
     set_window(w);
-    const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
     key_.resize(p.owned());
     for (std::size_t i = 0; i < p.owned(); ++i)
         key_[i] = key_of(p.x[i], p.y[i]);
     order_.resize(p.owned());
-    // A stable counting sort by cell of the fluid, then of the walls after them.
-    for (const auto &[first, last] :
-         {std::pair{std::size_t{0}, p.fluid()}, std::pair{p.fluid(), p.owned()}}) {
-        fill_.assign(cells + 1, 0);
-        for (std::size_t i = first; i < last; ++i)
-            ++fill_[key_[i] + 1];
-        fill_[0] = static_cast<std::uint32_t>(first);
-        for (std::size_t c = 0; c < cells; ++c)
-            fill_[c + 1] += fill_[c];
-        for (std::size_t i = first; i < last; ++i)
-            order_[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
-    }
+    // The fluid, then the walls after them (Particles keeps them apart).
+    sort_by_key(0, p.fluid(), 0, reorder_starts_, order_);
+    sort_by_key(p.fluid(), p.owned(), p.fluid(), reorder_starts_, order_);
     p.permute(order_);
 }
 
@@ -84,26 +88,18 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     const auto last_column = cells - static_cast<std::size_t>(rows_);
     owned_ = p.owned();
     key_.resize(n);
-    start_.assign(cells + 1, 0);
     for (std::size_t i = 0; i < n; ++i) {
         const std::uint32_t k = key_of(p.x[i], p.y[i]);
         if ((west > 0 && k < static_cast<std::uint32_t>(rows_)) || (east > 0 && k >= last_column))
             throw std::logic_error("sorted grid: particle " + std::to_string(p.id[i]) +
                                    " sits in an edge column kept for ghosts");
         key_[i] = k;
-        ++start_[k + 1];
     }
-    for (std::size_t c = 0; c < cells; ++c)
-        start_[c + 1] += start_[c];
-    // The west ghosts' slots come first: every cell starts `west` positions later, and the
-    // edge columns kept for ghosts stay empty until add_ghosts.
-    for (auto &s : start_)
-        s += static_cast<std::uint32_t>(west);
-    // Counting sort by cell, then by id within a cell.
+    // Counting sort by cell, then by id within a cell. The west ghosts' slots come first: every
+    // cell starts `west` positions later, and the edge columns kept for ghosts stay empty until
+    // add_ghosts.
     orig_.assign(n + west + east, 0);
-    fill_.assign(start_.begin(), start_.end() - 1);
-    for (std::size_t i = 0; i < n; ++i)
-        orig_[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
+    sort_by_key(0, n, west, start_, orig_);
     sort_cells_by_id(p, 0, cells);
     for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
         v->resize(n + west + east);

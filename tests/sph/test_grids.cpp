@@ -229,9 +229,11 @@ TEST(CellSorted, ReorderPermutesEveryArrayIntoCellOrder) {
         return std::pair{window.column_of(q.x[i]),
                          static_cast<int>(std::floor(q.y[i] / (cell / CellSorted::rows_per_cell)))};
     };
-    for (std::size_t i = 1; i < p.size(); ++i)
-        if (i != fluid)
+    for (std::size_t i = 1; i < p.size(); ++i) {
+        if (i != fluid) {
             EXPECT_LE(cell_of(p, i - 1), cell_of(p, i)) << "position " << i;
+        }
+    }
     EXPECT_EQ(search(g, p), expected);
 }
 

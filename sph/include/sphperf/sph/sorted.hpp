@@ -95,11 +95,16 @@ private:
     void set_window(const CellWindow &w);
     std::uint32_t key_of(double x, double y) const; // sorted cell of a position
     void copy_fields(const Particles &p, std::size_t from, std::size_t to);
+    // Stable counting sort of [first, last) by key_: starts[c] becomes the first position of
+    // cell c (cells + 1 entries, counted from `base`), out[starts[c]...] its indices in order.
+    void sort_by_key(std::size_t first, std::size_t last, std::size_t base,
+                     std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out);
     void sort_cells_by_id(const Particles &p, std::size_t first_cell, std::size_t last_cell);
     CellWindow window_;
     std::size_t west_ = 0, east_ = 0, local_ = 0; // ghost slots kept, particles sorted
     std::vector<double> x_, y_, vx_, vy_, rho_, p_over_rho2_, mass_, fluid_, remote_;
-    std::vector<std::uint32_t> orig_, start_, key_, fill_, order_;
+    std::vector<std::uint32_t> orig_, start_, key_, fill_;
+    std::vector<std::uint32_t> order_, reorder_starts_; // reorder's
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
 };
