@@ -239,12 +239,12 @@ ExchangeCounts Domain::exchange_ghosts(Particles &p) {
 }
 
 namespace {
-std::vector<double> densities_of(const Particles &p, const std::vector<std::uint32_t> &idx) {
-    std::vector<double> out;
-    out.reserve(idx.size());
+// Into `out`, whose buffer is kept: --overlap packs into the same vectors every step.
+void densities_of(const Particles &p, const std::vector<std::uint32_t> &idx,
+                  std::vector<double> &out) {
+    out.clear();
     for (auto i : idx)
         out.push_back(p.rho[i]);
-    return out;
 }
 } // namespace
 
@@ -252,11 +252,16 @@ void Domain::refresh_ghost_density(Particles &p) {
     if (slab_.ranks == 1)
         return;
     std::optional<MaybePhase> pack(std::in_place, timers_, Phase::pack);
-    const std::vector<double> to_west = densities_of(p, export_west_);
-    const std::vector<double> to_east = densities_of(p, export_east_);
+    std::vector<double> to_west, to_east;
+    densities_of(p, export_west_, to_west);
+    densities_of(p, export_east_, to_east);
     pack.reset();
     const auto in = shift(to_west, to_east, tag_density);
     pack.emplace(timers_, Phase::pack);
+    land_densities(p, in);
+}
+
+void Domain::land_densities(Particles &p, const Received<double> &in) const {
     std::copy(in.from_west.begin(), in.from_west.end(),
               p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_));
     std::copy(in.from_east.begin(), in.from_east.end(),
@@ -387,8 +392,8 @@ void Domain::begin_ghost_density(const Particles &p) {
         return;
     {
         MaybePhase t(timers_, Phase::pack);
-        flight_.rho_to_west = densities_of(p, export_west_);
-        flight_.rho_to_east = densities_of(p, export_east_);
+        densities_of(p, export_west_, flight_.rho_to_west);
+        densities_of(p, export_east_, flight_.rho_to_east);
     }
     post_shift(flight_.rho_to_west, flight_.rho_to_east, flight_.rho, tag_density);
 }
@@ -401,10 +406,7 @@ void Domain::finish_ghost_density(Particles &p) {
         sizeof(double) * std::max({flight_.rho_to_east.size(), flight_.rho_to_west.size(),
                                    in.from_west.size(), in.from_east.size()})));
     MaybePhase t(timers_, Phase::pack);
-    std::copy(in.from_west.begin(), in.from_west.end(),
-              p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_));
-    std::copy(in.from_east.begin(), in.from_east.end(),
-              p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_ + ghosts_from_west_));
+    land_densities(p, in);
 }
 
 double Domain::sum(double v) const {

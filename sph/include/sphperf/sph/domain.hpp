@@ -152,6 +152,8 @@ private:
     void pack_ghosts(const Particles &p, std::vector<ParticleRecord> &to_west,
                      std::vector<ParticleRecord> &to_east);
     void land_ghosts(Particles &p, const Received<ParticleRecord> &in);
+    // Received ghost densities into the ghosts' slots.
+    void land_densities(Particles &p, const Received<double> &in) const;
     void wait_for_neighbours(int tag);
     // Hockney time of one MPI_Sendrecv to `dest` and from `src` (0 without costs attached).
     double sendrecv_hockney(int dest, double out_bytes, int src, double in_bytes) const;
