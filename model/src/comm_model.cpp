@@ -200,6 +200,11 @@ double ExchangeModel::shift_seconds(const ExchangeSet &set, double gap_s, double
     return bytes <= b1 ? y0 + (y1 - y0) * (bytes - b0) / (b1 - b0) : y1 + slope * (bytes - b1);
 }
 
+double ExchangeModel::app_shift_seconds(const ExchangeSet &set, double since_any_s,
+                                        double since_kind_s, double bytes) {
+    return shift_seconds(set, set.load() > 1 ? since_any_s : since_kind_s, bytes);
+}
+
 double ExchangeModel::round_overhead(const ExchangeSet &set, double gap_s) {
     if (set.load() <= 1)
         return 1.0;

@@ -256,9 +256,11 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
                                 overhead)
             .step_s;
     };
-    // The compute that precedes each of the three shifts of a step: on this kind of machine
-    // it decides what a shift costs (exchange benchmark). Above the core count the ranks
-    // take turns where the launcher put them, so a step spans at least the busiest core's.
+    // The compute between two shifts decides what they cost on this kind of machine
+    // (exchange benchmark): about a third of the step lies between two shifts of any kind,
+    // a whole step between two of the same kind (ExchangeModel::app_shift_seconds picks).
+    // Above the core count the ranks take turns where the launcher put them, so a step spans
+    // at least the busiest core's.
     double busy = 0;
     for (int n = 0; n < nodes; ++n) {
         if (node_shared(n)) {
@@ -303,7 +305,8 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
                 return hockney;
             const double most =
                 std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
-            const double measured = ExchangeModel::shift_seconds(*set, gap, most * per_particle);
+            const double measured =
+                ExchangeModel::app_shift_seconds(*set, gap, busy, most * per_particle);
             // A shift that leaves the node lasts at least its network messages.
             return crosses ? std::max(measured, hockney) : measured;
         };

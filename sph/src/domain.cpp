@@ -61,6 +61,28 @@ private:
 };
 } // namespace
 
+double &Domain::last_end(int tag) {
+    switch (tag) {
+    case tag_migrate:
+        return last_kind_end_s_[0];
+    case tag_ghost:
+        return last_kind_end_s_[1];
+    case tag_density:
+        return last_kind_end_s_[2];
+    default:
+        throw std::logic_error("Domain: an exchange with an unknown tag");
+    }
+}
+
+std::pair<double, double> Domain::gaps(int tag, double now) {
+    const double kind = last_end(tag);
+    return {last_any_end_s_ > 0 ? now - last_any_end_s_ : 0.0, kind > 0 ? now - kind : 0.0};
+}
+
+void Domain::shift_ended(int tag, double when) {
+    last_any_end_s_ = last_end(tag) = when;
+}
+
 void Domain::wait_for_neighbours(int tag) {
     // A zero-byte handshake each way: it returns once both neighbours have arrived, so the time
     // spent here is the wait for the slower one, and the transfers after it are timed alone.
@@ -105,9 +127,9 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     // and receives at once, so no chain forms across ranks; MPI_PROC_NULL makes the tank
     // edges no-ops.
     wait_for_neighbours(tag);
-    // The compute since the last shift decides what the next one costs on this machine.
+    // The compute since the last shifts decides what this one costs on this machine.
     const double start = wall_seconds();
-    const double gap = last_shift_end_s_ > 0 ? start - last_shift_end_s_ : 0.0;
+    const auto [since_any, since_kind] = gaps(tag, start);
     shift_hockney_s_ = 0;
     Received<T> in;
     auto one_way = [&](int dest, int src, const std::vector<T> &out, std::vector<T> &into) {
@@ -119,14 +141,16 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     };
     one_way(east_, west_, to_east, in.from_west);
     one_way(west_, east_, to_west, in.from_east);
-    last_shift_end_s_ = wall_seconds();
+    const double end = wall_seconds();
+    shift_ended(tag, end);
     if (tag != tag_migrate)
-        tally_.halo_s += last_shift_end_s_ - start;
+        tally_.halo_s += end - start;
     const double payload =
         static_cast<double>(sizeof(T) * std::max({to_east.size(), to_west.size(),
                                                   in.from_west.size(), in.from_east.size()}));
     tally_.hockney_s += shift_hockney_s_;
-    tally_.predicted_s += shift_cost_ ? shift_cost_(gap, payload) : shift_hockney_s_;
+    tally_.predicted_s +=
+        shift_cost_ ? shift_cost_(since_any, since_kind, payload) : shift_hockney_s_;
     return in;
 }
 
@@ -286,7 +310,8 @@ void Domain::post_shift(const std::vector<T> &to_west, const std::vector<T> &to_
                      MPI_STATUS_IGNORE);
     }
     const double comm_start = wall_seconds();
-    flight_.gap_s = last_shift_end_s_ > 0 ? comm_start - last_shift_end_s_ : 0.0;
+    flight_.tag = tag;
+    flight_.gaps = gaps(tag, comm_start);
     in.from_west.resize(static_cast<std::size_t>(west_ == MPI_PROC_NULL ? 0 : from_w));
     in.from_east.resize(static_cast<std::size_t>(east_ == MPI_PROC_NULL ? 0 : from_e));
     {
@@ -341,8 +366,9 @@ void Domain::complete_shift(double payload_bytes) {
                     MPI_STATUSES_IGNORE);
     }
     flight_.receives.clear();
-    last_shift_end_s_ = wall_seconds();
-    tally_.halo_s += last_shift_end_s_ - flight_.posted_s - window;
+    const double end = wall_seconds();
+    shift_ended(flight_.tag, end);
+    tally_.halo_s += end - flight_.posted_s - window;
     tally_.overlap_s += window;
     tally_.hockney_s += shift_hockney_s_;
     // What stays exposed, predicted: taking in the received payloads, each as long as a hot
@@ -352,7 +378,8 @@ void Domain::complete_shift(double payload_bytes) {
     // was shorter than the rest of what the shift costs after compute (exchange benchmark:
     // synchronisation, cold caches). The rest is hidden (the thesis' T_overlap).
     const double full =
-        std::max(shift_cost_ ? shift_cost_(flight_.gap_s, payload_bytes) : shift_hockney_s_,
+        std::max(shift_cost_ ? shift_cost_(flight_.gaps.first, flight_.gaps.second, payload_bytes)
+                             : shift_hockney_s_,
                  flight_.exposed_s);
     const double exposed = std::max(flight_.exposed_s, full - window);
     tally_.predicted_s += exposed;

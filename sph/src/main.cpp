@@ -235,8 +235,8 @@ void attach_message_costs(Domain &domain, const std::filesystem::path &machine,
     if (!exchange.empty()) {
         const auto set = std::make_shared<model::ExchangeSet>(
             exchange.set_for(domain.ranks(), threads, Topology().cores()));
-        domain.attach_shift_cost([set](double gap_s, double bytes) {
-            return model::ExchangeModel::shift_seconds(*set, gap_s, bytes);
+        domain.attach_shift_cost([set](double since_any_s, double since_kind_s, double bytes) {
+            return model::ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes);
         });
     }
     const int me = pus[static_cast<std::size_t>(domain.rank())];

@@ -563,6 +563,14 @@ TEST(Comm, ExchangeTableInterpolatesAndMatchesTheLoad) {
     EXPECT_NEAR(ExchangeModel::shift_seconds(two, 1.0, 64), planted(1e-2, 64), 1e-12);
     EXPECT_NEAR(ExchangeModel::shift_seconds(two, 0.0, 8), planted(1e-6, 64), 1e-12);
     EXPECT_NEAR(ExchangeModel::shift_seconds(two, 1e-4, 4096), planted(1e-4, 4096), 1e-12);
+    // The app's shifts: within the cores the gap since the same kind decides (each kind's path
+    // cools for a whole step), above them the gap since any shift (a descheduled neighbour).
+    const auto &four = m.set_for(4, 1, 2);
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 1e-6, 1e-2, 64), planted(1e-2, 64), 1e-12);
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(four, 1e-6, 1e-2, 64),
+                ExchangeModel::shift_seconds(four, 1e-6, 64), 1e-12);
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(four, 1e-6, 1e-2, 64), planted(1e-6, 64) * 2,
+                1e-12);
     EXPECT_DOUBLE_EQ(ExchangeModel::round_overhead(two, 1e-3), 1.0);
     EXPECT_DOUBLE_EQ(ExchangeModel::round_overhead(m.set_for(4, 1, 2), 1e-3), 1.2);
     EXPECT_TRUE(ExchangeModel::from_profile(nlohmann::json::object()).empty());

@@ -69,6 +69,15 @@ public:
     // Mean seconds of one shift after `gap_s` of compute, carrying `bytes` per payload:
     // log-linear in the gap between measured gaps (held at the ends), linear in the payload.
     static double shift_seconds(const ExchangeSet &set, double gap_s, double bytes);
+    // One of the app's shifts, `since_any_s` after its previous shift of any kind and
+    // `since_kind_s` after the previous one of its own kind (migration, ghosts, densities).
+    // Within the cores the second decides: each kind recurs once a step with its own payload,
+    // and the shifts between (other sizes, other protocols) do not warm its path (measured:
+    // 18 KB ghosts 9 us after a migration cost 10-11 us, as after a whole step, not the 6 us
+    // of back-to-back shifts; session 19). Above the cores the first does: the shift waits
+    // for a neighbour descheduled behind the compute since the last exchange of any kind.
+    static double app_shift_seconds(const ExchangeSet &set, double since_any_s, double since_kind_s,
+                                    double bytes);
     // Round time over the time-sharing bound (>= 1 when measured), at that gap; 1 when the set
     // is not oversubscribed or has no figure.
     static double round_overhead(const ExchangeSet &set, double gap_s);

@@ -27,8 +27,11 @@ inline std::vector<int> equal_cuts(int ranks, int columns) {
 inline void check_cuts(std::span<const int> cuts, int ranks, int columns) {
     auto fail = [&](const std::string &why) {
         std::string list;
-        for (int c : cuts)
-            list += (list.empty() ? "" : ",") + std::to_string(c);
+        for (int c : cuts) {
+            if (!list.empty())
+                list += ',';
+            list += std::to_string(c);
+        }
         throw std::invalid_argument("slab cuts [" + list + "] for " + std::to_string(ranks) +
                                     " ranks over " + std::to_string(columns) + " columns: " + why);
     };

@@ -10,6 +10,7 @@
 
 #include <mpi.h>
 
+#include <array>
 #include <functional>
 #include <optional>
 #include <string>
@@ -59,9 +60,10 @@ struct GhostsInFlight {
 
 // One-way time of a message of `bytes` to or from a neighbour (west or east).
 using MessageCost = std::function<double(double bytes)>;
-// Time of one whole shift (counts and payloads both ways) after `gap_s` of compute since the
-// previous one, with payloads of `bytes`.
-using ShiftCost = std::function<double(double gap_s, double bytes)>;
+// Time of one whole shift (counts and payloads both ways) `since_any_s` after this rank's
+// previous shift and `since_kind_s` after its previous one of the same kind, with payloads of
+// `bytes`.
+using ShiftCost = std::function<double(double since_any_s, double since_kind_s, double bytes)>;
 
 class Domain {
 public:
@@ -163,8 +165,17 @@ private:
     PhaseTimers *timers_ = nullptr;
     MessageCost cost_west_, cost_east_, overlap_west_, overlap_east_;
     ShiftCost shift_cost_;
-    double last_shift_end_s_ = 0; // when this rank's previous shift ended (wall clock)
-    double shift_hockney_s_ = 0;  // Hockney prediction of the current shift's messages
+    // When this rank's previous shift of any kind, and of each kind (migration, ghosts,
+    // densities), ended (wall clock): what a shift costs depends on both
+    // (model::ExchangeModel::app_shift_seconds).
+    double last_any_end_s_ = 0;
+    std::array<double, 3> last_kind_end_s_{};
+    double &last_end(int tag);
+    // The gaps since both, at `now`, as the shift cost takes them; 0 before the first.
+    std::pair<double, double> gaps(int tag, double now);
+    // Records the end of a shift of this kind.
+    void shift_ended(int tag, double when);
+    double shift_hockney_s_ = 0; // Hockney prediction of the current shift's messages
     CommTally tally_;
     std::vector<std::uint32_t> export_west_, export_east_; // indices sent by the last exchange
     std::size_t ghosts_begin_ = 0, ghosts_from_west_ = 0;  // where received ghosts landed
@@ -176,7 +187,9 @@ private:
         std::vector<double> rho_to_west, rho_to_east;
         Received<double> rho;
         std::vector<MPI_Request> receives, sends;
-        double posted_s = 0, gap_s = 0, exposed_s = 0; // exposed_s: unhidden, predicted
+        double posted_s = 0, exposed_s = 0; // exposed_s: unhidden, predicted
+        std::pair<double, double> gaps;     // since any shift, since one of this kind
+        int tag = 0;
     } flight_;
     MPI_Comm comm_;
     Slab slab_;
