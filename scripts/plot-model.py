@@ -282,6 +282,15 @@ def markdown(model, validation, args, out):
         lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
                      f"measured gap): median per-interval |error| "
                      f"{100 * s['inline_comm_abs_error_per_interval']['median']:.1f} % (target 20 %).")
+    same, other = (s.get("inline_comm_abs_error_per_interval_" + k) for k in ("profile_mode", "other_mode"))
+    if same or other:
+        part = lambda x: (f"median {100 * x['median']:.1f} % over {x['count']} intervals" if x
+                          else "no interval")
+        lines.append(f"Latency mode (sph --machine within the cores probes 64 back-to-back 64-byte shifts "
+                     f"every interval; this VM flips between about 0.4 and 1.0 us as the hypervisor moves "
+                     f"the virtual cores): intervals in the mode the exchange benchmark ran in (probe "
+                     f"within 1.5x of its figure) {part(same)}; in the other mode {part(other)}. "
+                     f"Time-shared runs do not probe.")
     if s.get("inline_hockney_comm_abs_error_per_interval"):
         lines.append(f"Communication, inline ping-pong Hockney alone (the thesis' T_COMM_PREDICT): "
                      f"median per-interval |error| "

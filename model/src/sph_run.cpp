@@ -48,6 +48,7 @@ void from_json(const json &j, RankStats &r) {
     r.descents = j.contains("descents") ? figure(j, "descents") : 0.0;
     r.overlap_s = j.contains("overlap_s") ? figure(j, "overlap_s") : 0.0;
     r.halo_comm_s = j.contains("halo_comm_s") ? figure(j, "halo_comm_s") : 0.0;
+    r.probe_shift_s = j.contains("probe_shift_s") ? figure(j, "probe_shift_s") : 0.0;
     r.hidden_predict_s =
         j.contains("comm_hidden_predict_s") ? figure(j, "comm_hidden_predict_s") : 0.0;
     for (const auto &[k, v] : j.at("timers").items()) {
@@ -115,6 +116,8 @@ SphRun load_sph_run(const std::filesystem::path &path) {
         r.wall_columns = j.at("wall_columns").get<std::vector<double>>();
         r.peak_rss_bytes = j.at("peak_rss_bytes").get<std::vector<double>>();
         r.placement_pus = j.at("placement_pus").get<std::vector<int>>();
+        r.profile_probe_shift_s =
+            j.contains("profile_probe_shift_s") ? figure(j, "profile_probe_shift_s") : 0.0;
         // Reports before multi-node runs were on one node.
         r.config.nodes = j.value("nodes", 1);
         if (j.contains("decomposition")) {

@@ -51,6 +51,10 @@ json validate(const json &header, const std::vector<json> &predictions,
     json rows = json::array(), unmatched = json::array();
     std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors,
         memory_errors;
+    // Inline errors of the intervals whose latency probe found the machine in the mode the
+    // profile was measured in (probe within a factor 1.5 of the profile's), and the others.
+    std::vector<double> same_mode_errors, other_mode_errors;
+    constexpr double same_mode_factor = 1.5;
     exceeded = false;
     for (const auto &m : measured) {
         const json *p = match(predictions, m);
@@ -109,11 +113,15 @@ json validate(const json &header, const std::vector<json> &predictions,
         const auto &piv = p->at("intervals");
         if (piv.size() == m.intervals.size())
             for (std::size_t k = 0; k < piv.size(); ++k) {
-                double mc = 0, ic = 0, hc = 0, pc = 0;
+                double mc = 0, ic = 0, hc = 0, pc = 0, probe = 0, probed = 0;
                 for (const auto &r : m.intervals[k].ranks) {
                     mc += r.timer("comm_s");
                     ic += r.comm_predict_s;
                     hc += r.comm_hockney_s;
+                    if (r.probe_shift_s > 0) {
+                        probe += r.probe_shift_s;
+                        probed += 1;
+                    }
                 }
                 for (const auto &r : piv[k].at("ranks"))
                     pc += r.at("comm_s").get<double>();
@@ -126,6 +134,17 @@ json validate(const json &header, const std::vector<json> &predictions,
                     e["inline_comm_s"] = ic;
                     e["inline_error"] = rel(ic, mc);
                     inline_comm_errors.push_back(std::abs(rel(ic, mc)));
+                }
+                if (probed > 0 && m.profile_probe_shift_s > 0) {
+                    const double ratio = probe / probed / m.profile_probe_shift_s;
+                    e["probe_shift_s"] = probe / probed;
+                    e["probe_over_profile"] = ratio;
+                    if (ic > 0) {
+                        const bool same =
+                            ratio <= same_mode_factor && ratio >= 1 / same_mode_factor;
+                        (same ? same_mode_errors : other_mode_errors)
+                            .push_back(std::abs(rel(ic, mc)));
+                    }
                 }
                 if (hc > 0) {
                     e["inline_hockney_comm_s"] = hc;
@@ -212,13 +231,16 @@ json validate(const json &header, const std::vector<json> &predictions,
     };
     out["configurations"] = rows;
     out["unmatched_runs"] = unmatched;
-    out["summary"] = {{"wall_abs_error", summary(wall_errors)},
-                      {"inline_comm_abs_error_per_interval", summary(inline_comm_errors)},
-                      {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
-                      {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
-                      {"peak_rss_abs_error", summary(memory_errors)},
-                      {"max_error", opt.max_error ? json(*opt.max_error) : json(nullptr)},
-                      {"exceeded", exceeded}};
+    out["summary"] = {
+        {"wall_abs_error", summary(wall_errors)},
+        {"inline_comm_abs_error_per_interval", summary(inline_comm_errors)},
+        {"inline_comm_abs_error_per_interval_profile_mode", summary(same_mode_errors)},
+        {"inline_comm_abs_error_per_interval_other_mode", summary(other_mode_errors)},
+        {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
+        {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
+        {"peak_rss_abs_error", summary(memory_errors)},
+        {"max_error", opt.max_error ? json(*opt.max_error) : json(nullptr)},
+        {"exceeded", exceeded}};
     return out;
 }
 

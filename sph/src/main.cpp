@@ -226,18 +226,26 @@ int bound_pu() {
 
 // Each message to a neighbour is costed with the link between the two ranks' units (Hockney);
 // each shift, when the profile has exchange measurements, as the exchange benchmark saw it at
-// this rank count and after the compute that preceded it.
-void attach_message_costs(Domain &domain, const std::filesystem::path &machine,
-                          const std::vector<int> &pus, int threads) {
+// this rank count and after the compute that preceded it. Within the cores the run also probes
+// the latency mode every interval; returns the profile's figure for that probe (0: no probe).
+double attach_message_costs(Domain &domain, const std::filesystem::path &machine,
+                            const std::vector<int> &pus, int threads) {
     const auto profile = model::load_report(machine, "machine");
     auto comm = std::make_shared<model::CommModel>(model::CommModel::from_profile(profile));
     const auto exchange = model::ExchangeModel::from_profile(profile);
+    double probe_s = 0;
+    constexpr double probe_bytes = 64; // Domain::probe_latency's payload
     if (!exchange.empty()) {
         const auto set = std::make_shared<model::ExchangeSet>(
             exchange.set_for(domain.ranks(), threads, Topology().cores()));
         domain.attach_shift_cost([set](double since_any_s, double since_kind_s, double bytes) {
             return model::ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes);
         });
+        // Above the cores a back-to-back shift waits for descheduled neighbours: no mode shows.
+        if (set->load() <= 1 && domain.ranks() > 1) {
+            domain.enable_latency_probe();
+            probe_s = model::ExchangeModel::shift_seconds(*set, 0.0, probe_bytes);
+        }
     }
     const int me = pus[static_cast<std::size_t>(domain.rank())];
     // A message to (outgoing) or from a neighbour, costed on the link between the two units.
@@ -252,6 +260,7 @@ void attach_message_costs(Domain &domain, const std::filesystem::path &machine,
     // --overlap: a received payload costs its one-way Hockney time, exposed whatever the
     // compute behind it (sph/README.md).
     domain.attach_overlap_cost(link(domain.west(), false), link(domain.east(), false));
+    return probe_s;
 }
 
 void print_summary(const nlohmann::json &r) {
@@ -277,12 +286,13 @@ void print_summary(const nlohmann::json &r) {
 void simulate(const Config &cfg, const Geometry &geo, int rank) {
     Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
     const std::vector<int> pus = domain.gather_int(bound_pu());
-    if (cfg.machine)
-        attach_message_costs(domain, *cfg.machine, pus, omp_get_max_threads());
+    const double profile_probe_s =
+        cfg.machine ? attach_message_costs(domain, *cfg.machine, pus, omp_get_max_threads()) : 0.0;
     RunRecord rec = cfg.grid == GridKind::list    ? Simulation<CellList>(cfg, geo, domain).run()
                     : cfg.grid == GridKind::table ? Simulation<CellTable>(cfg, geo, domain).run()
                                                   : Simulation<CellSorted>(cfg, geo, domain).run();
     rec.placement_pus = pus;
+    rec.profile_probe_shift_s = profile_probe_s;
     rec.placement_nodes = domain.gather_string(node_name());
     if (rank == 0) {
         const Topology topo;

@@ -174,6 +174,7 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     j["nodes"] =
         std::set<std::string>(run.placement_nodes.begin(), run.placement_nodes.end()).size();
     j["machine"] = c.machine ? nlohmann::json(c.machine->string()) : nlohmann::json();
+    j["profile_probe_shift_s"] = run.profile_probe_shift_s;
     j["initial_columns"] = run.initial_columns;
     j["wall_columns"] = run.wall_columns;
     {
@@ -228,6 +229,7 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"overlap_s", r.overlap_s},
                               {"comm_hidden_predict_s", r.hidden_predict_s},
                               {"halo_comm_s", r.halo_comm_s},
+                              {"probe_shift_s", r.probe_shift_s},
                               {"descents", r.descents},
                               {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)

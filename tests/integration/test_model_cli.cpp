@@ -317,6 +317,46 @@ TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
     // 2 ranks: each sends a count and a payload per exchange, 3 exchanges per step.
     EXPECT_EQ(messages, 2 * 60 * 3 * 2);
     EXPECT_GT(predicted, 0);
+    // Without exchange measurements in the profile there is no latency probe.
+    EXPECT_EQ(j["profile_probe_shift_s"].get<double>(), 0);
+}
+
+// With the exchange benchmark in the profile, each interval within the cores probes the latency
+// mode (not counted as messages), beside the profile's figure for it; above the cores a
+// back-to-back shift waits for descheduled neighbours, so nothing is probed.
+TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
+    const auto dir = scratch("latency_probe");
+    const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/reference/vm/";
+    const auto machine = dir / "machine.json";
+    sphperf::testing::Run r =
+        run(bin("machine-profile") + " --stream " + vm + "stream.json --dgemm " + vm +
+            "dgemm.json --pingpong " + vm + "pingpong.json --exchange " + vm + "exchange_r2.json " +
+            vm + "exchange_r3.json --out " + machine.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    for (int ranks : {2, 3}) {
+        const auto path = dir / ("probe" + std::to_string(ranks) + ".json");
+        r = run(mpirun(ranks) + bin("sph") +
+                " --quiet --setup still --grid sorted --scale 0.5 --steps 20 --interval 10 "
+                "--machine " +
+                machine.string() + " --report " + path.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto j = load(path);
+        double messages = 0;
+        for (const auto &iv : j["intervals"])
+            for (const auto &rk : iv["ranks"]) {
+                messages += rk["messages"].get<double>();
+                if (ranks == 2)
+                    EXPECT_GT(rk["probe_shift_s"].get<double>(), 0);
+                else
+                    EXPECT_EQ(rk["probe_shift_s"].get<double>(), 0);
+            }
+        if (ranks == 2) {
+            EXPECT_GT(j["profile_probe_shift_s"].get<double>(), 0);
+            EXPECT_EQ(messages, 2 * 20 * 3 * 2); // the app's own messages only
+        } else {
+            EXPECT_EQ(j["profile_probe_shift_s"].get<double>(), 0);
+        }
+    }
 }
 
 // sph --overlap: the counts ride on the handshake and the payloads are posted non-blocking, so

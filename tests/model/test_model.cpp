@@ -608,6 +608,34 @@ TEST(Validate, FlagsAPlantedTwentyPercentError) {
     EXPECT_EQ(v["unmatched_runs"].size(), 1u);
 }
 
+// The latency probe sorts each interval's inline communication error by the machine's mode:
+// an interval probing within 1.5x of the profile's figure is in the profile's mode, one at 3x
+// is not, and a run that did not probe counts in neither.
+TEST(Validate, SplitsInlineCommunicationErrorsByLatencyMode) {
+    auto run = [](double probe_s, double profile_s, double predicted_s) {
+        auto r = measured_run(1.0);
+        r.intervals[0].ranks[0].timers["comm_s"] = 0.1;
+        r.intervals[0].ranks[0].comm_predict_s = predicted_s;
+        r.intervals[0].ranks[0].probe_shift_s = probe_s;
+        r.profile_probe_shift_s = profile_s;
+        return r;
+    };
+    bool exceeded = false;
+    const auto v =
+        validate({}, {prediction(1.0)},
+                 {run(1.4e-6, 1e-6, 0.11), run(3e-6, 1e-6, 0.05), run(0, 0, 0.2)}, {}, exceeded);
+    const auto &s = v["summary"];
+    ASSERT_EQ(s["inline_comm_abs_error_per_interval_profile_mode"]["count"], 1);
+    EXPECT_NEAR(s["inline_comm_abs_error_per_interval_profile_mode"]["median"].get<double>(), 0.1,
+                1e-12);
+    ASSERT_EQ(s["inline_comm_abs_error_per_interval_other_mode"]["count"], 1);
+    EXPECT_NEAR(s["inline_comm_abs_error_per_interval_other_mode"]["median"].get<double>(), 0.5,
+                1e-12);
+    EXPECT_EQ(s["inline_comm_abs_error_per_interval"]["count"], 3);
+    EXPECT_NEAR(v["configurations"][1]["comm_series"][0]["probe_over_profile"].get<double>(), 3.0,
+                1e-12);
+}
+
 // A cost per interaction planted as a function of Froude time, g(tF) = 1 + 2 tF, in two rounds
 // of a half-scale run (equal work every interval): the profile recovers g at each interval's
 // Froude time (interval midpoint / sqrt(0.5)), the window's ratio of sums being exact for a

@@ -18,7 +18,8 @@ struct RankStats {
     // sph --overlap: compute run while ghost transfers were in flight, and the predicted
     // transfer time it hid (inline, sph --machine); 0 in blocking runs.
     double overlap_s = 0, hidden_predict_s = 0;
-    double halo_comm_s = 0; // comm_s of the ghost and density exchanges (0 in older reports)
+    double halo_comm_s = 0;   // comm_s of the ghost and density exchanges (0 in older reports)
+    double probe_shift_s = 0; // the latency probe at the interval's end (0: none, older reports)
     std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
 
     double timer(const std::string &key) const;
@@ -51,6 +52,8 @@ struct SphRun {
     std::vector<IntervalStats> intervals;
     std::vector<double> initial_columns, wall_columns, peak_rss_bytes;
     std::vector<int> placement_pus;
+    // The machine profile's figure for the latency probe (0: the run did not probe).
+    double profile_probe_shift_s = 0;
 };
 
 SphRun load_sph_run(const std::filesystem::path &path);

@@ -85,6 +85,12 @@ public:
         overlap_east_ = std::move(east);
     }
     CommTally take_tally() { return std::exchange(tally_, CommTally{}); }
+    // The machine's latency mode now (sph --machine within the cores): the mean time of 64
+    // back-to-back 64-byte shifts after 64 untimed ones, the exchange benchmark's gap-0 point,
+    // timed apart from every phase and tally. On this VM it flips between two modes as the
+    // hypervisor moves the virtual cores (model/README.md, session 19). 0 unless enabled or alone.
+    void enable_latency_probe() { probe_ = true; }
+    double probe_latency();
     int west() const { return west_; }
     int east() const { return east_; }
 
@@ -165,6 +171,7 @@ private:
     PhaseTimers *timers_ = nullptr;
     MessageCost cost_west_, cost_east_, overlap_west_, overlap_east_;
     ShiftCost shift_cost_;
+    bool probe_ = false;
     // When this rank's previous shift of any kind, and of each kind (migration, ghosts,
     // densities), ended (wall clock): what a shift costs depends on both
     // (model::ExchangeModel::app_shift_seconds).

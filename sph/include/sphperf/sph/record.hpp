@@ -36,9 +36,10 @@ struct RankInterval {
     double overlap_s = 0;        // --overlap: compute run while ghost transfers were in flight
     double hidden_predict_s = 0; // ... and the predicted transfer time it hid (T_overlap)
     double halo_comm_s = 0;      // comm_s of the ghost and density exchanges (no migration)
+    double probe_shift_s = 0;    // the latency probe at the interval's end (Domain), 0: none
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
 
-    static constexpr std::size_t fields = 22 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 23 + static_cast<std::size_t>(Phase::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };
@@ -89,8 +90,11 @@ struct RunRecord {
     std::vector<std::string> placement_nodes; // node of each rank (SLURMD_NODENAME, else host)
     std::vector<RebalanceRecord> rebalances;  // balanced decomposition only
     std::vector<int> final_cuts;              // the slabs at the end of the run
-    std::int64_t restarted_from_step = -1;    // the checkpoint's step, -1: not a restart
-    std::filesystem::path restarted_from;     // its directory
+    // The machine profile's figure for the latency probe (the exchange benchmark's gap-0
+    // 64-byte shift at this load); 0 when the run does not probe.
+    double profile_probe_shift_s = 0;
+    std::int64_t restarted_from_step = -1; // the checkpoint's step, -1: not a restart
+    std::filesystem::path restarted_from;  // its directory
 };
 
 } // namespace sphperf::sph

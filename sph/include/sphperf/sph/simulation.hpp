@@ -437,6 +437,7 @@ inline double resident_bytes() {
 template <CellGrid Grid> void Simulation<Grid>::close_interval(std::int64_t step) {
     acc_.field = static_cast<double>(p_.fluid());
     acc_.rss_bytes = resident_bytes();
+    acc_.probe_shift_s = dom_.probe_latency();
     for (std::size_t i = 0; i < p_.fluid(); ++i)
         if (p_.x[i] < 0 || p_.x[i] > geo_.tank_length || p_.y[i] < 0)
             acc_.escaped += 1;
