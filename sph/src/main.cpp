@@ -242,7 +242,9 @@ double attach_message_costs(Domain &domain, const std::filesystem::path &machine
             return model::ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes);
         });
         // Above the cores a back-to-back shift waits for descheduled neighbours: no mode shows.
-        if (set->load() <= 1 && domain.ranks() > 1) {
+        // The probe is collective: every rank must agree (nodes may differ in cores).
+        const bool within = set->load() <= 1 && domain.ranks() > 1;
+        if (domain.max(within ? 0.0 : 1.0) == 0.0) {
             domain.enable_latency_probe();
             probe_s = model::ExchangeModel::shift_seconds(*set, 0.0, probe_bytes);
         }
