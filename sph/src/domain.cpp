@@ -97,10 +97,7 @@ double Domain::probe_latency() {
     double spent = 0;
     for (int i = -warmup; i < rounds; ++i) {
         // As the benchmark: the handshake first (untimed), then count and payload each way.
-        MPI_Sendrecv(nullptr, 0, MPI_BYTE, east_, tag_probe, nullptr, 0, MPI_BYTE, west_, tag_probe,
-                     comm_, MPI_STATUS_IGNORE);
-        MPI_Sendrecv(nullptr, 0, MPI_BYTE, west_, tag_probe, nullptr, 0, MPI_BYTE, east_, tag_probe,
-                     comm_, MPI_STATUS_IGNORE);
+        handshake(tag_probe);
         const double t0 = wall_seconds();
         for (const auto &[dest, src] : {std::pair{east_, west_}, std::pair{west_, east_}}) {
             int n_out = payload_bytes, n_in = 0;
@@ -120,6 +117,10 @@ void Domain::wait_for_neighbours(int tag) {
     // A zero-byte handshake each way: it returns once both neighbours have arrived, so the time
     // spent here is the wait for the slower one, and the transfers after it are timed alone.
     MaybePhase t(timers_, Phase::wait);
+    handshake(tag);
+}
+
+void Domain::handshake(int tag) const {
     MPI_Sendrecv(nullptr, 0, MPI_BYTE, east_, tag, nullptr, 0, MPI_BYTE, west_, tag, comm_,
                  MPI_STATUS_IGNORE);
     MPI_Sendrecv(nullptr, 0, MPI_BYTE, west_, tag, nullptr, 0, MPI_BYTE, east_, tag, comm_,

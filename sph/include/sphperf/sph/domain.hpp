@@ -163,6 +163,8 @@ private:
     // Received ghost densities into the ghosts' slots.
     void land_densities(Particles &p, const Received<double> &in) const;
     void wait_for_neighbours(int tag);
+    // A zero-byte message each way with both neighbours, untimed: returns once both arrived.
+    void handshake(int tag) const;
     // Hockney time of one MPI_Sendrecv to `dest` and from `src` (0 without costs attached).
     double sendrecv_hockney(int dest, double out_bytes, int src, double in_bytes) const;
     // One MPI_Sendrecv of raw bytes, timed as comm and tallied.
