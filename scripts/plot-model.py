@@ -289,7 +289,8 @@ def markdown(model, validation, args, out):
         lines.append(f"Latency mode (sph --machine within the cores probes 64 back-to-back 64-byte shifts "
                      f"every interval; this VM flips between about 0.4 and 1.0 us as the hypervisor moves "
                      f"the virtual cores): intervals in the mode the exchange benchmark ran in (probe "
-                     f"within 1.5x of its figure) {part(same)}; in the other mode {part(other)}. "
+                     f"0.89-2.2x its figure: the app's probe reads 1.4x the benchmark's in the same mode) "
+                     f"{part(same)}; in the other mode {part(other)}. "
                      f"Time-shared runs do not probe.")
     if s.get("inline_hockney_comm_abs_error_per_interval"):
         lines.append(f"Communication, inline ping-pong Hockney alone (the thesis' T_COMM_PREDICT): "

@@ -52,9 +52,12 @@ json validate(const json &header, const std::vector<json> &predictions,
     std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors,
         memory_errors;
     // Inline errors of the intervals whose latency probe found the machine in the mode the
-    // profile was measured in (probe within a factor 1.5 of the profile's), and the others.
+    // profile was measured in, and the others. Measured on this VM (session 19): the app's
+    // probe reads 1.4x the benchmark's figure in the same mode, and the two modes differ 2.5x;
+    // so the same mode is a ratio within sqrt(2.5) of 1.4 (0.89-2.2), halfway in log to
+    // either neighbouring mode (0.56 and 3.5).
     std::vector<double> same_mode_errors, other_mode_errors;
-    constexpr double same_mode_factor = 1.5;
+    constexpr double probe_offset = 1.4, mode_half_step = 1.58;
     exceeded = false;
     for (const auto &m : measured) {
         const json *p = match(predictions, m);
@@ -140,8 +143,8 @@ json validate(const json &header, const std::vector<json> &predictions,
                     e["probe_shift_s"] = probe / probed;
                     e["probe_over_profile"] = ratio;
                     if (ic > 0) {
-                        const bool same =
-                            ratio <= same_mode_factor && ratio >= 1 / same_mode_factor;
+                        const bool same = ratio <= probe_offset * mode_half_step &&
+                                          ratio >= probe_offset / mode_half_step;
                         (same ? same_mode_errors : other_mode_errors)
                             .push_back(std::abs(rel(ic, mc)));
                     }

@@ -609,8 +609,9 @@ TEST(Validate, FlagsAPlantedTwentyPercentError) {
 }
 
 // The latency probe sorts each interval's inline communication error by the machine's mode:
-// an interval probing within 1.5x of the profile's figure is in the profile's mode, one at 3x
-// is not, and a run that did not probe counts in neither.
+// the app's probe reads 1.4x the profile's figure in the same mode and the modes differ 2.5x,
+// so a probe at 1.4x or 1.8x is in the profile's mode, at 3.5x or 0.56x not, and a run that did
+// not probe counts in neither.
 TEST(Validate, SplitsInlineCommunicationErrorsByLatencyMode) {
     auto run = [](double probe_s, double profile_s, double predicted_s) {
         auto r = measured_run(1.0);
@@ -621,18 +622,19 @@ TEST(Validate, SplitsInlineCommunicationErrorsByLatencyMode) {
         return r;
     };
     bool exceeded = false;
-    const auto v =
-        validate({}, {prediction(1.0)},
-                 {run(1.4e-6, 1e-6, 0.11), run(3e-6, 1e-6, 0.05), run(0, 0, 0.2)}, {}, exceeded);
+    const auto v = validate({}, {prediction(1.0)},
+                            {run(1.4e-6, 1e-6, 0.11), run(3.5e-6, 1e-6, 0.05),
+                             run(0.56e-6, 1e-6, 0.05), run(1.8e-6, 1e-6, 0.13), run(0, 0, 0.2)},
+                            {}, exceeded);
     const auto &s = v["summary"];
-    ASSERT_EQ(s["inline_comm_abs_error_per_interval_profile_mode"]["count"], 1);
-    EXPECT_NEAR(s["inline_comm_abs_error_per_interval_profile_mode"]["median"].get<double>(), 0.1,
+    ASSERT_EQ(s["inline_comm_abs_error_per_interval_profile_mode"]["count"], 2);
+    EXPECT_NEAR(s["inline_comm_abs_error_per_interval_profile_mode"]["median"].get<double>(), 0.2,
                 1e-12);
-    ASSERT_EQ(s["inline_comm_abs_error_per_interval_other_mode"]["count"], 1);
+    ASSERT_EQ(s["inline_comm_abs_error_per_interval_other_mode"]["count"], 2);
     EXPECT_NEAR(s["inline_comm_abs_error_per_interval_other_mode"]["median"].get<double>(), 0.5,
                 1e-12);
-    EXPECT_EQ(s["inline_comm_abs_error_per_interval"]["count"], 3);
-    EXPECT_NEAR(v["configurations"][1]["comm_series"][0]["probe_over_profile"].get<double>(), 3.0,
+    EXPECT_EQ(s["inline_comm_abs_error_per_interval"]["count"], 5);
+    EXPECT_NEAR(v["configurations"][1]["comm_series"][0]["probe_over_profile"].get<double>(), 3.5,
                 1e-12);
 }
 
