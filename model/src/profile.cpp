@@ -26,8 +26,9 @@ nlohmann::json load_report(const std::filesystem::path &path, std::string_view b
     const auto kind = j.is_object() ? j.find("benchmark") : j.end();
     if (!j.is_object() || kind == j.end() || !kind->is_string() ||
         kind->get_ref<const std::string &>() != benchmark)
-        throw UsageError("'" + path.string() + "' is not a " + std::string(benchmark) +
-                         " report (its \"benchmark\" field differs)");
+        throw UsageError("'" + path.string() + "' is not a report of kind \"" +
+                         std::string(benchmark) + "\" (its \"benchmark\" field is " +
+                         (j.is_object() && kind != j.end() ? kind->dump() : "missing") + ")");
     return j;
 }
 

@@ -57,10 +57,17 @@ Config parse(int argc, char **argv) {
     app.add_option("--interval", cfg.interval, "Steps per report interval")
         ->check(CLI::Range(1, 1 << 30));
     app.add_option("--report", cfg.report, "Write the JSON report to this file");
-    app.add_option("--machine", cfg.machine,
-                   "machine.json: record per interval and rank the predicted time of the messages "
-                   "actually sent (comm_predict_s; comm_hockney_s by ping-pong alone)")
-        ->check(CLI::ExistingFile);
+    auto *o_machine =
+        app.add_option("--machine", cfg.machine,
+                       "machine.json: record per interval and rank the predicted time of the "
+                       "messages actually sent (comm_predict_s; comm_hockney_s by ping-pong alone)")
+            ->check(CLI::ExistingFile);
+    app.add_option("--exchange", cfg.exchange,
+                   "An exchange benchmark report of this host at this run's rank count: cost the "
+                   "shifts with it instead of the machine profile's (measure it right before the "
+                   "run where exchange costs drift, see model/README.md)")
+        ->check(CLI::ExistingFile)
+        ->needs(o_machine);
     app.add_option("--vtk", cfg.vtk_dir, "Write ParaView snapshots (.vtu + sph.pvd) here");
     app.add_option("--vtk-every", cfg.vtk_every, "Steps between snapshots")
         ->check(CLI::Range(1, 1 << 30));
@@ -172,6 +179,30 @@ void check_memory(const Config &cfg, const Geometry &geo, int ranks_here, int ra
     }
 }
 
+// --exchange: the report, checked, as the profile's "exchange" section holding it alone. It
+// must come from the profile's host and from this run's rank count: a set measured at another
+// load would cost the shifts at the wrong level of time-sharing.
+nlohmann::json exchange_override(const Config &cfg, int ranks) {
+    const std::string where = cfg.exchange->string();
+    const auto report = model::load_report(*cfg.exchange, "exchange");
+    model::check_report(report, "exchange", where);
+    const auto profile = model::load_report(*cfg.machine, "machine");
+    const auto host = report.value("host", std::string());
+    if (host != profile.value("host", std::string()))
+        throw UsageError("--exchange '" + where + "' was measured on host '" + host +
+                         "', the machine profile on '" + profile.value("host", std::string()) +
+                         "' (expected the same host)");
+    const int measured = report.at("ranks").get<int>();
+    if (measured != ranks)
+        throw UsageError("--exchange '" + where + "' ran on " + std::to_string(measured) +
+                         " ranks, this run has " + std::to_string(ranks) +
+                         " (run the exchange benchmark on " + std::to_string(ranks) + ")");
+    nlohmann::json section = nlohmann::json::object();
+    section["exchange"] = nlohmann::json::array({report});
+    (void)model::ExchangeModel::from_profile(section); // refuses malformed points here
+    return section;
+}
+
 // A restart's checkpoint and the output paths are checked by rank 0 before any work; the
 // verdict is shared.
 void check_outputs(const Config &cfg, const Geometry &geo, int rank, int ranks) {
@@ -185,6 +216,8 @@ void check_outputs(const Config &cfg, const Geometry &geo, int rank, int ranks) 
     if (rank == 0) {
         try {
             check_memory(cfg, geo, ranks_here, ranks);
+            if (cfg.exchange)
+                (void)exchange_override(cfg, ranks);
             // A restart is checked whole first, so a bad checkpoint overwrites nothing.
             if (cfg.restart_dir)
                 (void)verify_checkpoint(*cfg.restart_dir, cfg);
@@ -228,11 +261,12 @@ int bound_pu() {
 // each shift, when the profile has exchange measurements, as the exchange benchmark saw it at
 // this rank count and after the compute that preceded it. Within the cores the run also probes
 // the latency mode every interval; returns the profile's figure for that probe (0: no probe).
-double attach_message_costs(Domain &domain, const std::filesystem::path &machine,
-                            const std::vector<int> &pus, int threads) {
-    const auto profile = model::load_report(machine, "machine");
+double attach_message_costs(Domain &domain, const Config &cfg, const std::vector<int> &pus,
+                            int threads) {
+    const auto profile = model::load_report(*cfg.machine, "machine");
     auto comm = std::make_shared<model::CommModel>(model::CommModel::from_profile(profile));
-    const auto exchange = model::ExchangeModel::from_profile(profile);
+    const auto exchange = model::ExchangeModel::from_profile(
+        cfg.exchange ? exchange_override(cfg, domain.ranks()) : profile);
     double probe_s = 0;
     constexpr double probe_bytes = 64; // Domain::probe_latency's payload
     if (!exchange.empty()) {
@@ -289,7 +323,7 @@ void simulate(const Config &cfg, const Geometry &geo, int rank) {
     Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
     const std::vector<int> pus = domain.gather_int(bound_pu());
     const double profile_probe_s =
-        cfg.machine ? attach_message_costs(domain, *cfg.machine, pus, omp_get_max_threads()) : 0.0;
+        cfg.machine ? attach_message_costs(domain, cfg, pus, omp_get_max_threads()) : 0.0;
     RunRecord rec = cfg.grid == GridKind::list    ? Simulation<CellList>(cfg, geo, domain).run()
                     : cfg.grid == GridKind::table ? Simulation<CellTable>(cfg, geo, domain).run()
                                                   : Simulation<CellSorted>(cfg, geo, domain).run();

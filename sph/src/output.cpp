@@ -174,6 +174,7 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     j["nodes"] =
         std::set<std::string>(run.placement_nodes.begin(), run.placement_nodes.end()).size();
     j["machine"] = c.machine ? nlohmann::json(c.machine->string()) : nlohmann::json();
+    j["exchange_report"] = c.exchange ? nlohmann::json(c.exchange->string()) : nlohmann::json();
     j["profile_probe_shift_s"] = run.profile_probe_shift_s;
     j["initial_columns"] = run.initial_columns;
     j["wall_columns"] = run.wall_columns;

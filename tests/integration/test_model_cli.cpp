@@ -359,6 +359,71 @@ TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
     }
 }
 
+// sph --exchange: a report measured right before the run costs the shifts instead of the
+// profile's. Flat tables (every gap and payload the same cost) make the inline prediction a
+// count of shifts times that cost, whatever the run's timing: twice the cost, twice the sum.
+// A report of another rank count or host, or of another kind, exits 2 with one line, no report.
+TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
+    const auto dir = scratch("exchange_override");
+    const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/reference/vm/";
+    const auto machine = dir / "machine.json";
+    sphperf::testing::Run r =
+        run(bin("machine-profile") + " --stream " + vm + "stream.json --dgemm " + vm +
+            "dgemm.json --pingpong " + vm + "pingpong.json --exchange " + vm +
+            "exchange_r2.json --out " + machine.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    auto flat = [&](const std::string &name, double cost_s, int ranks, const std::string &host) {
+        auto j = load(fs::path(vm) / "exchange_r2.json");
+        for (auto &p : j["points"])
+            p["shift"]["mean_s"] = cost_s;
+        j["ranks"] = ranks;
+        j["host"] = host;
+        const auto path = dir / name;
+        std::ofstream(path) << j.dump();
+        return path.string();
+    };
+    const std::string host = load(machine)["host"].get<std::string>();
+    std::vector<double> sums;
+    for (double cost : {1e-3, 2e-3}) {
+        const auto report = dir / ("flat" + std::to_string(sums.size()) + ".json");
+        const auto exchange =
+            flat("exchange_flat" + std::to_string(sums.size()) + ".json", cost, 2, host);
+        r = run(mpirun(2) + bin("sph") +
+                " --quiet --setup still --grid sorted --scale 0.5 --steps 20 --interval 10 "
+                "--machine " +
+                machine.string() + " --exchange " + exchange + " --report " + report.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto j = load(report);
+        EXPECT_EQ(j["exchange_report"].get<std::string>(), exchange);
+        double sum = 0;
+        for (const auto &iv : j["intervals"])
+            for (const auto &rk : iv["ranks"])
+                sum += rk["comm_predict_s"].get<double>();
+        const double shifts = sum / cost;
+        EXPECT_NEAR(shifts, std::round(shifts), 1e-6) << "not a whole number of shifts";
+        EXPECT_GT(shifts, 0);
+        sums.push_back(sum);
+    }
+    EXPECT_NEAR(sums[1] / sums[0], 2.0, 1e-9);
+
+    const auto out = dir / "refused.json";
+    for (const auto &[exchange, expect] :
+         {std::pair{flat("three.json", 1e-3, 3, host), std::string("ran on 3 ranks")},
+          std::pair{flat("other_host.json", 1e-3, 2, "elsewhere"), std::string("'elsewhere'")},
+          std::pair{machine.string(), std::string("is not a report of kind \"exchange\"")}}) {
+        r = run(mpirun(2) + bin("sph") + " --quiet --setup still --scale 0.5 --steps 2 " +
+                "--machine " + machine.string() + " --exchange " + exchange + " --report " +
+                out.string());
+        EXPECT_EQ(r.code, 2) << r.err;
+        EXPECT_EQ(r.err_lines(), 1) << r.err;
+        EXPECT_NE(r.err.find(expect), std::string::npos) << r.err;
+        EXPECT_FALSE(fs::exists(out));
+    }
+    r = run(bin("sph") + " --quiet --steps 2 --exchange " + flat("alone.json", 1e-3, 2, host));
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find("--exchange requires --machine"), std::string::npos) << r.err;
+}
+
 // sph --overlap: the counts ride on the handshake and the payloads are posted non-blocking, so
 // each rank sends one message per exchange fewer; the inline prediction says what the compute
 // behind them hid. The model predicts the exposed part only: less than the blocking exchanges.
@@ -480,7 +545,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadModelInput{"malformed", "calibrate --machine MACHINE --runs DIR/malformed.json",
                       "not valid JSON"},
         BadModelInput{"wrong_kind", "calibrate --machine MACHINE --runs MACHINE",
-                      "is not a sph report"},
+                      "is not a report of kind \"sph\" (its \"benchmark\" field is \"machine\")"},
         BadModelInput{"missing_key",
                       "calibrate --allow-other-host --machine MACHINE --runs DIR/missing_key.json",
                       "field_mean"},

@@ -99,6 +99,9 @@ struct Config {
     int interval = 1000;
     std::optional<std::filesystem::path> report;
     std::optional<std::filesystem::path> machine; // machine.json: predict each message inline
+    // An exchange benchmark report that costs the shifts in place of the profile's (one measured
+    // right before the run, on a machine whose exchange costs drift).
+    std::optional<std::filesystem::path> exchange;
     std::optional<std::filesystem::path> vtk_dir;
     int vtk_every = 0;
     bool quiet = false;
