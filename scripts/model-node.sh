@@ -2,12 +2,13 @@
 # The model half of the main job: calibrate the SPH runtime model with short runs at half
 # scale, predict a validation set it never ran, measure that set, validate, and plot.
 #   scripts/model-node.sh --machine MACHINE.json --out DIR [--quick]
-# Writes DIR/{model,prediction_*,validation}.json, validation.md, the PNGs, and the SPH
-# reports under DIR/runs/. Nothing else should run meanwhile: the figures are timings.
+# Writes DIR/{model,prediction_*,validation}.json, validation.md, the PNGs, the SPH reports
+# under DIR/runs/ and the exchange benchmarks run right before the validation runs under
+# DIR/exchange-fresh/. Nothing else should run meanwhile: the figures are timings.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build="${SPHPERF_BUILD_DIR:-$root/build}"
-usage() { sed -n '2,6p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+usage() { sed -n '2,7p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
 machine="" out="" quick=0
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -23,6 +24,9 @@ done
 runs="$out/runs"
 mkdir -p "$runs"
 rm -f "$runs"/*.json
+fresh="$out/exchange-fresh"
+mkdir -p "$fresh"
+rm -f "$fresh"/*.json
 sph() { # sph RANKS[xTHREADS] NAME ARGS...: one measured run (1 thread per rank unless given),
     # with the inline Hockney prediction
     local ranks=${1%x*} threads=1 name=$2
@@ -32,6 +36,23 @@ sph() { # sph RANKS[xTHREADS] NAME ARGS...: one measured run (1 thread per rank 
     bash "$root/scripts/mpirun.sh" -n "$ranks" -t "$threads" "$build/bin/sph" --quiet --threads "$threads" \
         --machine "$machine" --report "$runs/$name.json" "$@" >/dev/null
     printf '  %-28s %4d s\n' "$name" $((SECONDS - t0))
+}
+# The exchange benchmark again, on the run's rank count, right before a validation run: it
+# costs that run's shifts inline (sph --exchange). On this VM the cost of a shift after 10 ms
+# of compute drifts 2-4x within a minute (model/README.md, session 20), more than any profile
+# measured once can follow. Only the gaps and payloads the app's shifts fall between.
+if [ "$quick" -eq 1 ]; then
+    fresh_args=(--gaps-us 0,10000 --payload-bytes 64,16384 --seconds-per-point 0.02 --min-rounds 5)
+else
+    fresh_args=(--gaps-us 0,1000,3000,10000,30000 --payload-bytes 64,1024,16384
+        --seconds-per-point 0.2 --min-rounds 10)
+fi
+fresh_s=0
+fresh_exchange() { # fresh_exchange RANKS NAME: writes $fresh/NAME.json
+    local t0=$SECONDS
+    bash "$root/scripts/mpirun.sh" -n "$1" "$build/bin/exchange" "${fresh_args[@]}" --quiet \
+        --json "$fresh/$2.json" >/dev/null
+    fresh_s=$((fresh_s + SECONDS - t0))
 }
 
 # Validation steps per setup and scale, and calibration reach. A calibration run at scale s must
@@ -86,9 +107,16 @@ calibrate_round() { # calibrate_round LABEL
 }
 cal_s=0
 val_s=0
-validate_run() { # validate_run RANKS NAME ARGS...
+validate_run() { # validate_run RANKS[xTHREADS] NAME ARGS...
+    local ranks=${1%x*} name=$2 spec=$1
+    shift 2
+    local extra=()
+    if [ "$ranks" -ge 2 ]; then
+        fresh_exchange "$ranks" "$name"
+        extra=(--exchange "$fresh/$name.json")
+    fi
     local t0=$SECONDS
-    sph "$@"
+    sph "$spec" "$name" "${extra[@]}" "$@"
     val_s=$((val_s + SECONDS - t0))
 }
 
@@ -193,4 +221,5 @@ model_and_validate() {
 model_and_validate "$out" levelled-one-se froude
 model_and_validate "$out/no-profile" levelled-one-se none >/dev/null
 model_and_validate "$out/pooled-one-percent" pooled-one-percent none >/dev/null
-/usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" --validation-s "$val_s"
+/usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" --validation-s "$val_s" \
+    --fresh-exchange-s "$fresh_s"

@@ -10,6 +10,7 @@ import argparse
 import glob
 import json
 import os
+import statistics
 import sys
 
 import matplotlib
@@ -189,6 +190,49 @@ def comm_error(validation, out):
     plt.close(fig)
 
 
+def fresh_source(args):
+    """Which exchange figures costed the validation runs' shifts inline."""
+    reports = [load(p) for p in sorted(glob.glob(os.path.join(args.dir, "runs", "val_*.json")))]
+    fresh = sum(1 for r in reports if r.get("exchange_report"))
+    multi = sum(1 for r in reports if len(r.get("placement_pus", [])) > 1)
+    if not fresh:
+        return "figures from the machine profile"
+    took = f", {args.fresh_exchange_s:.0f} s in all" if args.fresh_exchange_s else ""
+    return (f"an exchange benchmark on the run's rank count right before each multi-rank validation "
+            f"run, {fresh} of {multi} (sph --exchange{took})")
+
+
+def inline_by_load(validation):
+    """The per-interval inline error within the cores and time-shared apart."""
+    within, shared = [], []
+    for c in validation["configurations"]:
+        e = [abs(x["inline_error"]) for x in c["comm_series"] if "inline_error" in x]
+        (shared if c["oversubscribed"] else within).extend(e)
+    part = lambda v: (f"median {100 * statistics.median(v):.1f} % over {len(v)} intervals" if v
+                      else "no interval")
+    return f"within the cores {part(within)}, time-shared {part(shared)}"
+
+
+def exchange_drift(folder, model):
+    """The spread of the exchange benchmarks run through the job at the 2-rank points the app's
+    shifts use most: how far a profile measured once may be from any one run."""
+    point = lambda rep, gap_us, size: next(
+        (p["shift"]["mean_s"] for p in rep["points"]
+         if p["gap_work_us"] == gap_us and p["payload_bytes"] == size), None)
+    reports = [load(p) for p in sorted(glob.glob(os.path.join(folder, "*.json")))]
+    reports = [r for r in reports if r.get("ranks") == 2]
+    late = [v for v in (point(r, 10000, 16384) for r in reports) if v]
+    if len(late) < 2:
+        return ""
+    near = [v for v in (point(r, 0, 64) for r in reports) if v]
+    span = lambda v, k=1e6: f"{k * min(v):.2f}-{k * max(v):.2f} us (median {k * statistics.median(v):.2f})"
+    text = (f"Exchange drift: the {len(reports)} 2-rank exchange benchmarks run through the validation "
+            f"put a 16 KB shift after 10 ms of compute at {span(late)}")
+    if near:
+        text += f", a back-to-back 64 B shift at {span(near)}"
+    return text + "; a profile measured once stands for one of them."
+
+
 def markdown(model, validation, args, out):
     lines = ["# Validation of the SPH runtime model", ""]
     lines.append(f"Host `{validation.get('host')}`, commit `{validation.get('git_commit')}`, "
@@ -280,8 +324,12 @@ def markdown(model, validation, args, out):
                          f"(no-profile/validation.json; refusals, if any, in no-profile/refused.txt).")
     if s["inline_comm_abs_error_per_interval"]:
         lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
-                     f"measured gap): median per-interval |error| "
-                     f"{100 * s['inline_comm_abs_error_per_interval']['median']:.1f} % (target 20 %).")
+                     f"measured gap; {fresh_source(args)}): median per-interval |error| "
+                     f"{100 * s['inline_comm_abs_error_per_interval']['median']:.1f} % (target 20 %); "
+                     f"{inline_by_load(validation)}.")
+        drift = exchange_drift(os.path.join(args.dir, "exchange-fresh"), model)
+        if drift:
+            lines.append(drift)
     same, other = (s.get("inline_comm_abs_error_per_interval_" + k) for k in ("profile_mode", "other_mode"))
     if same or other:
         part = lambda x: (f"median {100 * x['median']:.1f} % over {x['count']} intervals" if x
@@ -341,6 +389,8 @@ def main():
     ap.add_argument("--dir", required=True, help="results folder holding model.json etc.")
     ap.add_argument("--calibration-s", type=float, default=0.0, help="wall time of calibration runs (s)")
     ap.add_argument("--validation-s", type=float, default=0.0, help="wall time of validation runs (s)")
+    ap.add_argument("--fresh-exchange-s", type=float, default=0.0,
+                    help="wall time of the exchange benchmarks run before the validation runs (s)")
     args = ap.parse_args()
     d = args.dir
     try:
