@@ -198,8 +198,9 @@ def fresh_source(args):
     if not fresh:
         return "figures from the machine profile"
     took = f", {args.fresh_exchange_s:.0f} s in all" if args.fresh_exchange_s else ""
-    return (f"an exchange benchmark on the run's rank count right before each multi-rank validation "
-            f"run, {fresh} of {multi} (sph --exchange{took})")
+    return (f"an exchange benchmark on the run's rank count right before each validation run within "
+            f"the cores, {fresh} of the {multi} multi-rank runs (sph --exchange{took}); the others "
+            f"the machine profile's")
 
 
 def inline_by_load(validation):
