@@ -180,13 +180,22 @@ void check_memory(const Config &cfg, const Geometry &geo, int ranks_here, int ra
 }
 
 // --exchange: the report, checked, as the profile's "exchange" section holding it alone. It
-// must come from the profile's host and from this run's rank count: a set measured at another
-// load would cost the shifts at the wrong level of time-sharing.
-nlohmann::json exchange_override(const Config &cfg, int ranks) {
-    const std::string where = cfg.exchange->string();
-    const auto report = model::load_report(*cfg.exchange, "exchange");
+// must come from the profile's host and match this run's load (its rank count, one thread per
+// rank as the benchmark runs): a set measured at another load would cost the shifts at the
+// wrong level of time-sharing.
+nlohmann::json exchange_override(const std::filesystem::path &path, const nlohmann::json &profile,
+                                 int ranks, int threads) {
+    const std::string where = path.string();
+    if (ranks < 2)
+        throw UsageError("--exchange '" + where +
+                         "' given to a 1-rank run, which sends no message");
+    if (threads != 1)
+        throw UsageError("--exchange '" + where +
+                         "' costs one-thread ranks as the benchmark ran, "
+                         "this run has " +
+                         std::to_string(threads) + " threads per rank");
+    const auto report = model::load_report(path, "exchange");
     model::check_report(report, "exchange", where);
-    const auto profile = model::load_report(*cfg.machine, "machine");
     const auto host = report.value("host", std::string());
     if (host != profile.value("host", std::string()))
         throw UsageError("--exchange '" + where + "' was measured on host '" + host +
@@ -217,7 +226,8 @@ void check_outputs(const Config &cfg, const Geometry &geo, int rank, int ranks) 
         try {
             check_memory(cfg, geo, ranks_here, ranks);
             if (cfg.exchange)
-                (void)exchange_override(cfg, ranks);
+                (void)exchange_override(*cfg.exchange, model::load_report(*cfg.machine, "machine"),
+                                        ranks, omp_get_max_threads());
             // A restart is checked whole first, so a bad checkpoint overwrites nothing.
             if (cfg.restart_dir)
                 (void)verify_checkpoint(*cfg.restart_dir, cfg);
@@ -266,7 +276,8 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
     const auto profile = model::load_report(*cfg.machine, "machine");
     auto comm = std::make_shared<model::CommModel>(model::CommModel::from_profile(profile));
     const auto exchange = model::ExchangeModel::from_profile(
-        cfg.exchange ? exchange_override(cfg, domain.ranks()) : profile);
+        cfg.exchange ? exchange_override(*cfg.exchange, profile, domain.ranks(), threads)
+                     : profile);
     double probe_s = 0;
     constexpr double probe_bytes = 64; // Domain::probe_latency's payload
     if (!exchange.empty()) {
@@ -342,12 +353,12 @@ int run(int argc, char **argv, int rank, int ranks) {
     const Config cfg = parse(argc, argv);
     const Geometry geo = make_geometry(cfg);
     validate(cfg, geo, ranks);
-    check_outputs(cfg, geo, rank, ranks);
     const Topology topo;
     if (cfg.threads > 0)
         omp_set_num_threads(cfg.threads);
     else if (!std::getenv("OMP_NUM_THREADS"))
         omp_set_num_threads(default_threads(topo));
+    check_outputs(cfg, geo, rank, ranks); // after the thread count: --exchange checks it
 
     if (rank == 0) {
         // Threads beyond the cores this rank may run on only take turns: say so.

@@ -362,7 +362,8 @@ TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
 // sph --exchange: a report measured right before the run costs the shifts instead of the
 // profile's. Flat tables (every gap and payload the same cost) make the inline prediction a
 // count of shifts times that cost, whatever the run's timing: twice the cost, twice the sum.
-// A report of another rank count or host, or of another kind, exits 2 with one line, no report.
+// A report of another rank count or host, or of another kind, or a run at another load (1 rank,
+// 2 threads per rank), exits 2 with one line and writes no report.
 TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
     const auto dir = scratch("exchange_override");
     const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/reference/vm/";
@@ -419,7 +420,19 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
         EXPECT_NE(r.err.find(expect), std::string::npos) << r.err;
         EXPECT_FALSE(fs::exists(out));
     }
-    r = run(bin("sph") + " --quiet --steps 2 --exchange " + flat("alone.json", 1e-3, 2, host));
+    // One rank sends nothing; two threads per rank is another load than the benchmark's.
+    const auto two = flat("two.json", 1e-3, 2, host);
+    for (const auto &[launch, expect] :
+         {std::pair{bin("sph") + " --threads 1", std::string("1-rank run")},
+          std::pair{mpirun(2) + bin("sph") + " --threads 2", std::string("2 threads per rank")}}) {
+        r = run(launch + " --quiet --setup still --scale 0.5 --steps 2 --machine " +
+                machine.string() + " --exchange " + two + " --report " + out.string());
+        EXPECT_EQ(r.code, 2) << r.err;
+        EXPECT_EQ(r.err_lines(), 1) << r.err;
+        EXPECT_NE(r.err.find(expect), std::string::npos) << r.err;
+        EXPECT_FALSE(fs::exists(out));
+    }
+    r = run(bin("sph") + " --quiet --steps 2 --exchange " + two);
     EXPECT_EQ(r.code, 2) << r.err;
     EXPECT_NE(r.err.find("--exchange requires --machine"), std::string::npos) << r.err;
 }
