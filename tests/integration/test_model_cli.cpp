@@ -8,11 +8,28 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <sstream>
 
 using namespace sphperf::testing;
 namespace fs = std::filesystem;
 
 namespace {
+const std::string reference_vm = std::string(SPHPERF_RESULTS_DIR) + "/reference/vm/";
+
+// A machine profile at `out` from the shipped raw reports, with the shipped exchange reports
+// named in `exchanges` (e.g. "exchange_r2.json exchange_r3.json"; none: no exchange section).
+Run reference_profile(const fs::path &out, const std::string &exchanges = "") {
+    std::string args = " --stream " + reference_vm + "stream.json --dgemm " + reference_vm +
+                       "dgemm.json --pingpong " + reference_vm + "pingpong.json";
+    if (!exchanges.empty()) {
+        args += " --exchange";
+        std::istringstream names(exchanges);
+        for (std::string name; names >> name;)
+            args += " " + reference_vm + name;
+    }
+    return run(bin("machine-profile") + args + " --out " + out.string());
+}
+
 // Shared fixtures, made once: a machine profile from the shipped raw reports, and short
 // half-scale dam-break runs at 1, 2 and 3 ranks with fine intervals, and a still tank at 3 ranks
 // (3 ranks is above the shipped profile's 2 cores: time-shared).
@@ -21,9 +38,7 @@ struct Fixture {
     Fixture() {
         dir = scratch("model_cli");
         machine = dir / "machine.json";
-        const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/reference/vm/";
-        Run r = run(bin("machine-profile") + " --stream " + vm + "stream.json --dgemm " + vm +
-                    "dgemm.json --pingpong " + vm + "pingpong.json --out " + machine.string());
+        Run r = reference_profile(machine);
         EXPECT_EQ(r.code, 0) << r.err;
         // The shipped profile is of host "vm": calibrate with --allow-other-host elsewhere.
         run1 = dir / "run1.json";
@@ -326,12 +341,8 @@ TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
 // back-to-back shift waits for descheduled neighbours, so nothing is probed.
 TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
     const auto dir = scratch("latency_probe");
-    const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/reference/vm/";
     const auto machine = dir / "machine.json";
-    sphperf::testing::Run r =
-        run(bin("machine-profile") + " --stream " + vm + "stream.json --dgemm " + vm +
-            "dgemm.json --pingpong " + vm + "pingpong.json --exchange " + vm + "exchange_r2.json " +
-            vm + "exchange_r3.json --out " + machine.string());
+    sphperf::testing::Run r = reference_profile(machine, "exchange_r2.json exchange_r3.json");
     ASSERT_EQ(r.code, 0) << r.err;
     for (int ranks : {2, 3}) {
         const auto path = dir / ("probe" + std::to_string(ranks) + ".json");
@@ -366,15 +377,11 @@ TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
 // 2 threads per rank), exits 2 with one line and writes no report.
 TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
     const auto dir = scratch("exchange_override");
-    const std::string vm = std::string(SPHPERF_RESULTS_DIR) + "/reference/vm/";
     const auto machine = dir / "machine.json";
-    sphperf::testing::Run r =
-        run(bin("machine-profile") + " --stream " + vm + "stream.json --dgemm " + vm +
-            "dgemm.json --pingpong " + vm + "pingpong.json --exchange " + vm +
-            "exchange_r2.json --out " + machine.string());
+    sphperf::testing::Run r = reference_profile(machine, "exchange_r2.json");
     ASSERT_EQ(r.code, 0) << r.err;
     auto flat = [&](const std::string &name, double cost_s, int ranks, const std::string &host) {
-        auto j = load(fs::path(vm) / "exchange_r2.json");
+        auto j = load(fs::path(reference_vm) / "exchange_r2.json");
         for (auto &p : j["points"])
             p["shift"]["mean_s"] = cost_s;
         j["ranks"] = ranks;
