@@ -310,11 +310,11 @@ void Domain::refresh_ghost_density(Particles &p) {
     if (slab_.ranks == 1)
         return;
     std::optional<MaybePhase> pack(std::in_place, timers_, Phase::pack);
-    std::vector<double> to_west, to_east;
-    densities_of(p, export_west_, to_west);
-    densities_of(p, export_east_, to_east);
+    // The overlapped path's kept buffers: a run refreshes densities one way or the other.
+    densities_of(p, export_west_, flight_.rho_to_west);
+    densities_of(p, export_east_, flight_.rho_to_east);
     pack.reset();
-    const auto in = shift(to_west, to_east, tag_density);
+    const auto in = shift(flight_.rho_to_west, flight_.rho_to_east, tag_density);
     pack.emplace(timers_, Phase::pack);
     land_densities(p, in);
 }

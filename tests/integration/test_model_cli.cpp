@@ -30,6 +30,16 @@ Run reference_profile(const fs::path &out, const std::string &exchanges = "") {
     return run(bin("machine-profile") + args + " --out " + out.string());
 }
 
+// A short half-scale still tank on Cell+Sorted with the inline prediction (`extra`: more sph
+// options), its report at `report`.
+Run still_sorted_with_profile(int ranks, const fs::path &machine, const fs::path &report,
+                              const std::string &extra = "") {
+    return run(mpirun(ranks) + bin("sph") +
+               " --quiet --setup still --grid sorted --scale 0.5 --steps 20 --interval 10 "
+               "--machine " +
+               machine.string() + extra + " --report " + report.string());
+}
+
 // Shared fixtures, made once: a machine profile from the shipped raw reports, and short
 // half-scale dam-break runs at 1, 2 and 3 ranks with fine intervals, and a still tank at 3 ranks
 // (3 ranks is above the shipped profile's 2 cores: time-shared).
@@ -346,10 +356,7 @@ TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
     ASSERT_EQ(r.code, 0) << r.err;
     for (int ranks : {2, 3}) {
         const auto path = dir / ("probe" + std::to_string(ranks) + ".json");
-        r = run(mpirun(ranks) + bin("sph") +
-                " --quiet --setup still --grid sorted --scale 0.5 --steps 20 --interval 10 "
-                "--machine " +
-                machine.string() + " --report " + path.string());
+        r = still_sorted_with_profile(ranks, machine, path);
         ASSERT_EQ(r.code, 0) << r.err;
         const auto j = load(path);
         double messages = 0;
@@ -396,10 +403,7 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
         const auto report = dir / ("flat" + std::to_string(sums.size()) + ".json");
         const auto exchange =
             flat("exchange_flat" + std::to_string(sums.size()) + ".json", cost, 2, host);
-        r = run(mpirun(2) + bin("sph") +
-                " --quiet --setup still --grid sorted --scale 0.5 --steps 20 --interval 10 "
-                "--machine " +
-                machine.string() + " --exchange " + exchange + " --report " + report.string());
+        r = still_sorted_with_profile(2, machine, report, " --exchange " + exchange);
         ASSERT_EQ(r.code, 0) << r.err;
         const auto j = load(report);
         EXPECT_EQ(j["exchange_report"].get<std::string>(), exchange);
