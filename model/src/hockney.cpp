@@ -84,6 +84,10 @@ PiecewiseFit fit_piecewise(std::span<const MessageSample> samples, std::size_t m
     const std::size_t n = samples.size();
     for (std::size_t split = min_points; split + min_points <= n; ++split) {
         const LineFit lo = fit_line(samples.first(split));
+        // The small piece's intercept is the latency every message pays: a split that makes it
+        // negative fits noise (seen on time-shared pairs), not a Hockney model.
+        if (!(lo.alpha_s > 0))
+            continue;
         const LineFit hi = fit_line(samples.subspan(split));
         const double ssr = lo.weighted_ssr + hi.weighted_ssr;
         if (ssr < best_ssr) {

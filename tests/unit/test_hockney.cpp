@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <random>
+#include <span>
 
 using sphperf::model::fit_line;
 using sphperf::model::fit_piecewise;
@@ -65,6 +66,19 @@ TEST(Hockney, NoBreakOnAStraightLine) {
     const auto f = fit_piecewise(s);
     EXPECT_EQ(f.pieces.size(), 1u);
     EXPECT_EQ(f.breakpoint_bytes, 0);
+}
+
+// A split whose small piece fits exactly but with a negative latency (T = 2M - 1 us over 1-8 B,
+// as noisy time-shared medians can line up) is not a Hockney model: the fit keeps the latency
+// positive rather than taking the split with the least residual.
+TEST(Hockney, NoSplitWithANegativeLatency) {
+    std::vector<MessageSample> s;
+    for (double m = 1; m <= 65536; m *= 2)
+        s.push_back({m, 1e-6 * (m <= 8 ? 2 * m - 1 : 40 + 1e-3 * m)});
+    ASSERT_LT(fit_line(std::span(s).first(4)).alpha_s, 0); // the best split, unrestricted
+    const auto f = fit_piecewise(s);
+    EXPECT_GT(f.alpha_s(), 0);
+    EXPECT_GT(f.pieces.front().points, 4u);
 }
 
 TEST(Hockney, RejectsDegenerateInput) {

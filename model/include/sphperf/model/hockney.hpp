@@ -42,9 +42,9 @@ struct PiecewiseFit {
     double predict(double bytes) const;
 };
 
-// Samples sorted by size. Every split leaving >= min_points on each side is tried and the one
-// with the least total squared relative residual is kept when it beats the single line by more
-// than `min_gain` (fractional reduction of the residual).
+// Samples sorted by size. Every split leaving >= min_points on each side whose small piece has a
+// positive latency is tried and the one with the least total squared relative residual is kept
+// when it beats the single line by more than `min_gain` (fractional reduction of the residual).
 PiecewiseFit fit_piecewise(std::span<const MessageSample> samples, std::size_t min_points = 3,
                            double min_gain = 0.5);
 
