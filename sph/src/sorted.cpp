@@ -1,5 +1,7 @@
 #include "sphperf/sph/sorted.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -8,6 +10,21 @@
 #include <utility>
 
 namespace sphperf::sph {
+
+namespace {
+
+// The calling thread's cells, inside a parallel region: its block, or for a team of another
+// size than the blocks were cut for, an equal share of the cells.
+std::pair<std::size_t, std::size_t> thread_cells(const std::uint32_t *blocks, int threads,
+                                                 std::size_t cells) {
+    const int t = omp_get_thread_num(), n = omp_get_num_threads();
+    if (n == threads)
+        return {blocks[t], blocks[t + 1]};
+    const auto share = [&](int k) { return cells * static_cast<std::size_t>(k) / n; };
+    return {share(t), share(t + 1)};
+}
+
+} // namespace
 
 std::uint32_t CellSorted::key_of(double x, double y) const {
     const double row_height = window_.cell_size / rows_per_cell;
@@ -22,26 +39,62 @@ std::uint32_t CellSorted::key_of(double x, double y) const {
 // Within each cell of [first_cell, last_cell), by id (a few particles: insertion sort).
 void CellSorted::sort_cells_by_id(const Particles &p, std::size_t first_cell,
                                   std::size_t last_cell) {
-#pragma omp parallel for schedule(dynamic, 64)
-    for (std::size_t c = first_cell; c < last_cell; ++c) {
-        const auto b = orig_.begin() + start_[c], e = orig_.begin() + start_[c + 1];
-        for (auto it = b + (b != e); it < e; ++it)
-            for (auto j = it; j > b && p.id[*(j - 1)] > p.id[*j]; --j)
-                std::iter_swap(j - 1, j);
+#pragma omp parallel
+    {
+        const auto [c0, c1] = thread_cells(blocks_.data(), threads_, start_.size() - 1);
+        for (std::size_t c = std::max(c0, first_cell); c < std::min(c1, last_cell); ++c) {
+            const auto b = orig_.begin() + start_[c], e = orig_.begin() + start_[c + 1];
+            for (auto it = b + (b != e); it < e; ++it)
+                for (auto j = it; j > b && p.id[*(j - 1)] > p.id[*j]; --j)
+                    std::iter_swap(j - 1, j);
+        }
     }
 }
 
+void CellSorted::cut_blocks() {
+    const int threads = std::max(omp_get_max_threads(), 1);
+    const auto cells = static_cast<int>(start_.size() - 1);
+    constexpr int reach = rows_per_cell;
+    cost_.resize(start_.size());
+    cost_[0] = 0;
+    for (int cell = 0; cell < cells; ++cell) {
+        const int col = cell / rows_, row = cell % rows_;
+        const int r0 = std::max(row - reach, 0), r1 = std::min(row + reach, rows_ - 1);
+        double candidates = 0;
+        for (int c = std::max(col - 1, 0); c <= std::min(col + 1, cols_ - 1); ++c)
+            candidates += start_[c * rows_ + r1 + 1] - start_[c * rows_ + r0];
+        cost_[cell + 1] = cost_[cell] + (start_[cell + 1] - start_[cell]) * candidates;
+    }
+    blocks_.assign(static_cast<std::size_t>(threads) + 1, static_cast<std::uint32_t>(cells));
+    blocks_[0] = 0;
+    for (int t = 1; t < threads; ++t)
+        blocks_[t] = static_cast<std::uint32_t>(
+            std::lower_bound(cost_.begin(), cost_.end(), cost_[cells] * t / threads) -
+            cost_.begin());
+    threads_ = threads;
+}
+
+std::pair<std::size_t, std::size_t> CellSorted::thread_positions() const {
+    const std::size_t cells = start_.size() - 1;
+    const auto [c0, c1] = thread_cells(blocks_.data(), threads_, cells);
+    // The first and last threads also take the positions outside every cell's range.
+    return {c0 == 0 ? 0 : start_[c0], c1 == cells ? orig_.size() : start_[c1]};
+}
+
 void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t to) {
-#pragma omp parallel for schedule(static)
-    for (std::size_t s = from; s < to; ++s) {
-        const std::uint32_t i = orig_[s];
-        x_[s] = p.x[i];
-        y_[s] = p.y[i];
-        vx_[s] = p.vx[i];
-        vy_[s] = p.vy[i];
-        mass_[s] = p.mass[i];
-        fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
-        remote_[s] = i < owned_ ? 0.0 : 1.0;
+#pragma omp parallel
+    {
+        const auto [s0, s1] = thread_positions();
+        for (std::size_t s = std::max(s0, from); s < std::min(s1, to); ++s) {
+            const std::uint32_t i = orig_[s];
+            x_[s] = p.x[i];
+            y_[s] = p.y[i];
+            vx_[s] = p.vx[i];
+            vy_[s] = p.vy[i];
+            mass_[s] = p.mass[i];
+            fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
+            remote_[s] = i < owned_ ? 0.0 : 1.0;
+        }
     }
 }
 
@@ -100,6 +153,7 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     // add_ghosts.
     orig_.assign(n + west + east, 0);
     sort_by_key(0, n, west, start_, orig_);
+    cut_blocks();
     sort_cells_by_id(p, 0, cells);
     for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
         v->resize(n + west + east);
@@ -154,12 +208,14 @@ void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
 }
 
 void CellSorted::refresh_density(const Particles &p) {
-    const std::size_t n = orig_.size();
-#pragma omp parallel for schedule(static)
-    for (std::size_t s = 0; s < n; ++s) {
-        const double rho = p.rho[orig_[s]];
-        rho_[s] = rho;
-        p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
+#pragma omp parallel
+    {
+        const auto [s0, s1] = thread_positions();
+        for (std::size_t s = s0; s < s1; ++s) {
+            const double rho = p.rho[orig_[s]];
+            rho_[s] = rho;
+            p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
+        }
     }
 }
 
@@ -174,9 +230,12 @@ void CellSorted::refresh_ghost_density(const Particles &p) {
 }
 
 CellSorted::View CellSorted::view() const {
-    return {x_.data(),           y_.data(),    vx_.data(),    vy_.data(),     rho_.data(),
-            p_over_rho2_.data(), mass_.data(), fluid_.data(), remote_.data(), orig_.data(),
-            start_.data(),       cols_,        rows_,         owned_};
+    return {x_.data(),    y_.data(),     vx_.data(),
+            vy_.data(),   rho_.data(),   p_over_rho2_.data(),
+            mass_.data(), fluid_.data(), remote_.data(),
+            orig_.data(), start_.data(), cols_,
+            rows_,        owned_,        blocks_.data(),
+            threads_};
 }
 
 namespace {
@@ -218,19 +277,28 @@ void for_each_candidate(const CellSorted::View &v, int col, int row, Body &&body
     }
 }
 
+// This thread's cells of the view (inside a parallel region).
+std::pair<int, int> thread_cells(const CellSorted::View &v) {
+    const auto [c0, c1] =
+        thread_cells(v.blocks, v.threads, static_cast<std::size_t>(v.cols) * v.rows);
+    return {static_cast<int>(c0), static_cast<int>(c1)};
+}
+
 // Runs per_particle(view, sorted index, col, row) for every owned particle of the columns,
-// cells shared out dynamically (the water is not spread evenly over cells).
+// each thread over its block of cells (balanced by the grid: the water is not spread evenly).
 template <class F>
 void for_each_owned(const CellSorted::View &v, ColumnSet columns, F &&per_particle) {
-    const int cells = v.cols * v.rows;
-#pragma omp parallel for schedule(dynamic, 8)
-    for (int cell = 0; cell < cells; ++cell) {
-        const int col = cell / v.rows, row = cell % v.rows;
-        if (!columns.contains(col))
-            continue;
-        for (std::size_t s = v.start[cell]; s < v.start[cell + 1]; ++s)
-            if (v.orig[s] < v.owned)
-                per_particle(s, col, row);
+#pragma omp parallel
+    {
+        const auto [c0, c1] = thread_cells(v);
+        for (int cell = c0; cell < c1; ++cell) {
+            const int col = cell / v.rows, row = cell % v.rows;
+            if (!columns.contains(col))
+                continue;
+            for (std::size_t s = v.start[cell]; s < v.start[cell + 1]; ++s)
+                if (v.orig[s] < v.owned)
+                    per_particle(s, col, row);
+        }
     }
 }
 } // namespace
@@ -245,50 +313,54 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
     double interactions = 0, remote = 0; // exact: integers far below 2^53
-    const int cells = v.cols * v.rows;
-#pragma omp parallel for schedule(dynamic, 8) reduction(+ : interactions, remote)
-    for (int cell = 0; cell < cells; ++cell) {
-        const int col = cell / v.rows, row = cell % v.rows;
-        if (!columns.contains(col))
-            continue;
-        for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
-            if (v.orig[i] >= v.owned)
+#pragma omp parallel reduction(+ : interactions, remote)
+    {
+        const auto [c0, c1] = thread_cells(v);
+        for (int cell = c0; cell < c1; ++cell) {
+            const int col = cell / v.rows, row = cell % v.rows;
+            if (!columns.contains(col))
                 continue;
-            const double xi = v.x[i], yi = v.y[i], vxi = v.vx[i], vyi = v.vy[i];
-            LaneSum drho, inter, rem;
-            // A fluid particle interacts with every particle within 3h, itself included here
-            // (subtracted below: its own term is 0, its separation and velocity difference
-            // being 0); a wall particle with fluid particles only, so not with itself. Two
-            // loops, so that neither tests in every lane what is known per particle.
-            auto pass = [&](auto fluid_i) {
-                for_each_candidate(v, col, row, [&](std::size_t j, int l) {
-                    const double dx = xi - v.x[j], dy = yi - v.y[j];
-                    const double d2 = dx * dx + dy * dy;
-                    double in;
-                    if constexpr (fluid_i)
-                        in = d2 < r2max ? 1.0 : 0.0;
-                    else
-                        in = (d2 < r2max) & (v.fluid[j] > 0) ? 1.0 : 0.0;
-                    const double act = d2 > 0 ? in : 0.0; // coincident images have no direction
-                    // Neighbours by the end of the step, the rate at separations `back` earlier
-                    // (physics.hpp continuity_term).
-                    const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
-                    const double mx = dx - back * dvx, my = dy - back * dvy;
-                    const double r = std::sqrt(mx * mx + my * my + tiny); // finite, masked below
-                    const double f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
-                    drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
-                    inter.v[l] += in;
-                    rem.v[l] += in * v.remote[j];
-                });
-            };
-            const bool fluid_i = v.fluid[i] > 0;
-            if (fluid_i)
-                pass(std::true_type{});
-            else
-                pass(std::false_type{});
-            p.drho[v.orig[i]] = drho.total();
-            interactions += inter.total() - (fluid_i ? 1.0 : 0.0);
-            remote += rem.total();
+            for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
+                if (v.orig[i] >= v.owned)
+                    continue;
+                const double xi = v.x[i], yi = v.y[i], vxi = v.vx[i], vyi = v.vy[i];
+                LaneSum drho, inter, rem;
+                // A fluid particle interacts with every particle within 3h, itself included here
+                // (subtracted below: its own term is 0, its separation and velocity difference
+                // being 0); a wall particle with fluid particles only, so not with itself. Two
+                // loops, so that neither tests in every lane what is known per particle.
+                auto pass = [&](auto fluid_i) {
+                    for_each_candidate(v, col, row, [&](std::size_t j, int l) {
+                        const double dx = xi - v.x[j], dy = yi - v.y[j];
+                        const double d2 = dx * dx + dy * dy;
+                        double in;
+                        if constexpr (fluid_i)
+                            in = d2 < r2max ? 1.0 : 0.0;
+                        else
+                            in = (d2 < r2max) & (v.fluid[j] > 0) ? 1.0 : 0.0;
+                        const double act = d2 > 0 ? in : 0.0; // coincident images have no direction
+                        // Neighbours by the end of the step, the rate at separations `back` earlier
+                        // (physics.hpp continuity_term).
+                        const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
+                        const double mx = dx - back * dvx, my = dy - back * dvy;
+                        const double r =
+                            std::sqrt(mx * mx + my * my + tiny); // finite, masked below
+                        const double f =
+                            k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
+                        drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
+                        inter.v[l] += in;
+                        rem.v[l] += in * v.remote[j];
+                    });
+                };
+                const bool fluid_i = v.fluid[i] > 0;
+                if (fluid_i)
+                    pass(std::true_type{});
+                else
+                    pass(std::false_type{});
+                p.drho[v.orig[i]] = drho.total();
+                interactions += inter.total() - (fluid_i ? 1.0 : 0.0);
+                remote += rem.total();
+            }
         }
     }
     return {static_cast<std::uint64_t>(interactions), static_cast<std::uint64_t>(remote)};

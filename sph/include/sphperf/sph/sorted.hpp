@@ -18,6 +18,7 @@
 #include <concepts>
 #include <cstdint>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace sphperf::sph {
@@ -50,7 +51,9 @@ public:
         const std::uint32_t *orig;    // sorted position -> index in Particles
         const std::uint32_t *start;   // cell -> first sorted position; start[cells] = size
         int cols, rows;
-        std::size_t owned; // a sorted particle is owned when orig < owned
+        std::size_t owned;           // a sorted particle is owned when orig < owned
+        const std::uint32_t *blocks; // thread t's cells: [blocks[t], blocks[t + 1])
+        int threads;                 // the team size the blocks were cut for
     };
 
     void update(const Particles &p, const CellWindow &w) { update(p, w, 0, 0); } // sort, copy
@@ -100,10 +103,21 @@ private:
     void sort_by_key(std::size_t first, std::size_t last, std::size_t base,
                      std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out);
     void sort_cells_by_id(const Particles &p, std::size_t first_cell, std::size_t last_cell);
+    // Cuts the cells into one contiguous block per thread, of equal candidates examined (the
+    // particles of a cell times the candidates in the ranges around it): every pass gives a
+    // thread the same block, so it reads what it wrote and the threads share only the cells at
+    // the cut. A dynamic schedule pays an inter-core round trip per chunk and moves the data
+    // between cores every pass; this VM's inter-core latency switches between about 80 and
+    // 350 ns (sph/README.md).
+    void cut_blocks();
+    // This thread's sorted positions (inside a parallel region): those of its block's cells.
+    std::pair<std::size_t, std::size_t> thread_positions() const;
     CellWindow window_;
     std::size_t west_ = 0, east_ = 0, local_ = 0; // ghost slots kept, particles sorted
     std::vector<double> x_, y_, vx_, vy_, rho_, p_over_rho2_, mass_, fluid_, remote_;
-    std::vector<std::uint32_t> orig_, start_, key_, fill_;
+    std::vector<std::uint32_t> orig_, start_, key_, fill_, blocks_;
+    std::vector<double> cost_; // cut_blocks': candidates examined in cells [0, c)
+    int threads_ = 0;
     std::vector<std::uint32_t> order_, reorder_starts_; // reorder's
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
