@@ -107,15 +107,40 @@ void CellSorted::set_window(const CellWindow &w) {
 void CellSorted::sort_by_key(std::size_t first, std::size_t last, std::size_t base,
                              std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out) {
     const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
-    starts.assign(cells + 1, 0);
-    for (std::size_t i = first; i < last; ++i)
-        ++starts[key_[i] + 1];
-    starts[0] = static_cast<std::uint32_t>(base);
-    for (std::size_t c = 0; c < cells; ++c)
-        starts[c + 1] += starts[c];
-    fill_.assign(starts.begin(), starts.end() - 1);
-    for (std::size_t i = first; i < last; ++i)
-        out[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
+    starts.resize(cells + 1);
+    fill_.resize(cells);
+    // Each thread files the particles of its block of cells (the last step's blocks, while the
+    // grid keeps its size), so it writes only positions it reads next; every thread scans all
+    // keys in order, so the result is the serial stable sort's.
+    const bool last_blocks = !blocks_.empty() && blocks_.back() == cells;
+    const int threads = last_blocks ? threads_ : std::max(omp_get_max_threads(), 1);
+    block_sizes_.assign(static_cast<std::size_t>(threads), 0);
+#pragma omp parallel num_threads(threads)
+    {
+        const auto [c0, c1] =
+            thread_cells(last_blocks ? blocks_.data() : nullptr, last_blocks ? threads_ : 0, cells);
+        std::fill(fill_.begin() + c0, fill_.begin() + c1, 0);
+        for (std::size_t i = first; i < last; ++i)
+            if (key_[i] >= c0 && key_[i] < c1)
+                ++fill_[key_[i]];
+        std::size_t size = 0;
+        for (std::size_t c = c0; c < c1; ++c)
+            size += fill_[c];
+        block_sizes_[omp_get_thread_num()] = size;
+#pragma omp barrier
+        std::size_t at = base;
+        for (int u = 0; u < omp_get_thread_num(); ++u)
+            at += block_sizes_[u];
+        for (std::size_t c = c0; c < c1; ++c) {
+            starts[c] = static_cast<std::uint32_t>(at);
+            at += std::exchange(fill_[c], static_cast<std::uint32_t>(at));
+        }
+        if (c1 == cells)
+            starts[cells] = static_cast<std::uint32_t>(at);
+        for (std::size_t i = first; i < last; ++i)
+            if (key_[i] >= c0 && key_[i] < c1)
+                out[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
+    }
 }
 
 void CellSorted::reorder(Particles &p, const CellWindow &w) {
@@ -141,13 +166,17 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     const auto last_column = cells - static_cast<std::size_t>(rows_);
     owned_ = p.owned();
     key_.resize(n);
+    std::size_t misplaced = n; // the first particle in an edge column kept for ghosts
+#pragma omp parallel for schedule(static) reduction(min : misplaced)
     for (std::size_t i = 0; i < n; ++i) {
         const std::uint32_t k = key_of(p.x[i], p.y[i]);
         if ((west > 0 && k < static_cast<std::uint32_t>(rows_)) || (east > 0 && k >= last_column))
-            throw std::logic_error("sorted grid: particle " + std::to_string(p.id[i]) +
-                                   " sits in an edge column kept for ghosts");
+            misplaced = std::min(misplaced, i);
         key_[i] = k;
     }
+    if (misplaced < n)
+        throw std::logic_error("sorted grid: particle " + std::to_string(p.id[misplaced]) +
+                               " sits in an edge column kept for ghosts");
     // Counting sort by cell, then by id within a cell. The west ghosts' slots come first: every
     // cell starts `west` positions later, and the edge columns kept for ghosts stay empty until
     // add_ghosts.
