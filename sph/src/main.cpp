@@ -362,7 +362,10 @@ int run(int argc, char **argv, int rank, int ranks) {
 
     if (rank == 0) {
         // Threads beyond the cores this rank may run on only take turns: say so.
-        const int bound = topo.this_process_binding().weight();
+        // With OMP_PROC_BIND the runtime has already bound this thread to one place, before the
+        // team exists: the team's cores are then the places.
+        const int places = omp_get_proc_bind() != omp_proc_bind_false ? omp_get_num_places() : 0;
+        const int bound = places > 0 ? places : topo.this_process_binding().weight();
         const int threads = omp_get_max_threads();
         if (bound > 0 && threads > bound)
             std::fprintf(stderr,
