@@ -96,8 +96,10 @@ calibrate_round() { # calibrate_round LABEL
     sph 3 "cal_still_s0.5_sorted_r3_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     # One rank x 2 threads (the cost per interaction at 2 threads is fitted on its own). On this
-    # VM a 2-thread run is bimodal, 3.0 or 4.5 ns per interaction whatever the scale
-    # (model/README.md, session 16): no number of calibration runs tells which mode a later run
+    # VM a 2-thread run was bimodal, 3.0 or 4.5 ns per interaction whatever the scale
+    # (model/README.md, session 16): the inter-core latency of the two vCPUs, which switches in
+    # spells. Since each thread keeps one block of cells (session 21) the far mode costs about
+    # 15 % more instead of 40 %, but no number of calibration runs tells which mode a later run
     # lands in.
     sph 1x2 "cal_dambreak_s0.5_sorted_t2_$1" --setup dambreak --scale 0.5 --grid sorted \
         --steps "$c_steps" --interval "$c_interval"
