@@ -5,8 +5,11 @@
 #include "sphperf/sph/sorted.hpp"
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
+#include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 #include <set>
 
@@ -235,6 +238,51 @@ TEST(CellSorted, ReorderPermutesEveryArrayIntoCellOrder) {
         }
     }
     EXPECT_EQ(search(g, p), expected);
+}
+
+// Each thread's block of cells: contiguous, covering every cell, and balanced by candidates
+// examined to within one cell's cost; the parallel filing gives the serial sort's order at any
+// thread count, on the first update (equal shares of cells) and the next (the last blocks).
+TEST(CellSorted, ThreadBlocksAreBalancedAndTheSortIsTheSerialOne) {
+    Particles p = random_configuration(5, 900, 120);
+    for (std::size_t i = 0; i < p.owned(); i += 2)
+        p.x[i] = 3 * cell + 0.3 * (p.x[i] - 3 * cell); // most of the water in the west columns
+    const int threads_before = omp_get_max_threads();
+    omp_set_num_threads(1);
+    CellSorted serial;
+    serial.update(p, window);
+    const CellSorted::View s = serial.view();
+    const std::vector<std::uint32_t> orig(s.orig, s.orig + p.size());
+    omp_set_num_threads(3);
+    CellSorted g;
+    for (int pass = 0; pass < 2; ++pass) {
+        g.update(p, window);
+        const CellSorted::View v = g.view();
+        EXPECT_EQ(std::vector<std::uint32_t>(v.orig, v.orig + p.size()), orig) << "pass " << pass;
+        ASSERT_EQ(v.threads, 3);
+        const int cells = v.cols * v.rows;
+        std::vector<double> cost(static_cast<std::size_t>(cells), 0.0);
+        for (int c = 0; c < cells; ++c) {
+            const int col = c / v.rows, row = c % v.rows;
+            const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
+            const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
+            double candidates = 0;
+            for (int k = std::max(col - 1, 0); k <= std::min(col + 1, v.cols - 1); ++k)
+                candidates += v.start[k * v.rows + r1 + 1] - v.start[k * v.rows + r0];
+            cost[static_cast<std::size_t>(c)] = (v.start[c + 1] - v.start[c]) * candidates;
+        }
+        const double total = std::accumulate(cost.begin(), cost.end(), 0.0);
+        const double largest = *std::max_element(cost.begin(), cost.end());
+        EXPECT_EQ(v.blocks[0], 0u);
+        EXPECT_EQ(v.blocks[3], static_cast<std::uint32_t>(cells));
+        for (int t = 0; t < 3; ++t) {
+            ASSERT_LE(v.blocks[t], v.blocks[t + 1]);
+            const double block =
+                std::accumulate(cost.begin() + v.blocks[t], cost.begin() + v.blocks[t + 1], 0.0);
+            EXPECT_NEAR(block, total / 3, largest) << "thread " << t;
+        }
+    }
+    omp_set_num_threads(threads_before);
 }
 
 TEST(Particles, PermuteRefusesWhatIsNotAFluidFirstPermutation) {
