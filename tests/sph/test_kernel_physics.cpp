@@ -84,6 +84,20 @@ TEST(Physics, TaitEquationOfStateRoundTrips) {
     EXPECT_NEAR(ph.tait_b(), 50.0 * 50.0 * 1000 / 7, 1e-9);
 }
 
+// gamma = 7 is multiplied out; it must agree with std::pow to rounding, and another exponent
+// must still take the general path.
+TEST(Physics, TaitPressureMatchesPowForSevenAndOtherExponents) {
+    for (const double gamma : {7.0, 5.0, 7.5}) {
+        Physics ph;
+        ph.gamma = gamma;
+        for (const double rho : {940.0, 999.0, 1000.5, 1013.0, 1100.0}) {
+            const double want = ph.tait_b() * (std::pow(rho / ph.rho0, gamma) - 1.0);
+            EXPECT_NEAR(ph.pressure(rho), want, 1e-13 * ph.tait_b()) << gamma << " " << rho;
+            EXPECT_NEAR(ph.density(ph.pressure(rho)), rho, 1e-9) << gamma << " " << rho;
+        }
+    }
+}
+
 TEST(Geometry, ThesisParticleCountsAndRankLimits) {
     Config cfg;
     cfg.physics.h = Physics::h_factor * cfg.physics.delta * std::sqrt(2.0);
