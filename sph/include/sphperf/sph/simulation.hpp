@@ -364,7 +364,21 @@ template <CellGrid Grid> void Simulation<Grid>::check_conservation(std::int64_t 
 // fluid particle through a wall is lost physics. Either stops the run at once, naming the step
 // and the particle, with this rank's particles written out for inspection.
 template <CellGrid Grid> void Simulation<Grid>::check_state(std::int64_t step) const {
-    for (std::size_t i = 0; i < p_.owned(); ++i) {
+    // Found in parallel (a serial pass took 2 % of a 2-thread Cell+Sorted step); the first bad
+    // particle in id order is then examined again to name what is wrong with it.
+    const std::size_t owned = p_.owned(), fluid = p_.fluid();
+    const double length = geo_.tank_length;
+    std::size_t first_bad = owned;
+#pragma omp parallel for schedule(static) reduction(min : first_bad)
+    for (std::size_t i = 0; i < owned; ++i) {
+        const bool finite = std::isfinite(p_.x[i]) && std::isfinite(p_.y[i]) &&
+                            std::isfinite(p_.vx[i]) && std::isfinite(p_.vy[i]) &&
+                            std::isfinite(p_.rho[i]);
+        const bool inside = i >= fluid || (p_.x[i] >= 0 && p_.x[i] <= length && p_.y[i] >= 0);
+        if (!(finite && inside))
+            first_bad = std::min(first_bad, i);
+    }
+    for (std::size_t i = first_bad; i < owned; ++i) {
         if (!std::isfinite(p_.x[i]) || !std::isfinite(p_.y[i]))
             fail_state(step, i, "a non-finite position");
         if (!std::isfinite(p_.vx[i]) || !std::isfinite(p_.vy[i]))

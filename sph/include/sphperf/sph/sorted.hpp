@@ -116,9 +116,10 @@ private:
     std::size_t west_ = 0, east_ = 0, local_ = 0; // ghost slots kept, particles sorted
     std::vector<double> x_, y_, vx_, vy_, rho_, p_over_rho2_, mass_, fluid_, remote_;
     std::vector<std::uint32_t> orig_, start_, key_, blocks_;
-    std::vector<std::uint32_t> fill_;      // sort_by_key's next position per cell
-    std::vector<std::size_t> block_sizes_; // sort_by_key's particles per block
-    std::vector<double> cost_;             // cut_blocks': candidates examined in cells [0, c)
+    std::vector<std::uint32_t> fill_;        // sort_by_key's next position per cell
+    std::vector<std::size_t> block_sizes_;   // sort_by_key's particles per block
+    std::vector<std::uint64_t> cost_;        // cut_blocks': candidates examined in cells [0, c)
+    std::vector<std::uint64_t> block_costs_; // cut_blocks': each thread's share of them
     int threads_ = 0;
     std::vector<std::uint32_t> order_, reorder_starts_; // reorder's
     int cols_ = 0, rows_ = 0;
