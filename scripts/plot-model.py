@@ -219,7 +219,8 @@ def exchange_drift(folder, model):
     shifts use most: how far a profile measured once may be from any one run."""
     point = lambda rep, gap_us, size: next(
         (p["shift"]["mean_s"] for p in rep["points"]
-         if p["gap_work_us"] == gap_us and p["payload_bytes"] == size), None)
+         if p["gap_work_us"] == gap_us and p["payload_bytes"] == size
+         and not p.get("overlapped", False)), None)
     reports = [load(p) for p in sorted(glob.glob(os.path.join(folder, "*.json")))]
     reports = [r for r in reports if r.get("ranks") == 2]
     late = [v for v in (point(r, 10000, 16384) for r in reports) if v]

@@ -5,7 +5,9 @@
 // costs several times the same shift in a tight loop, with a heavy tail, and above the core
 // count the ranks take turns. So this measures the shift's cost per (ranks, gap, payload) as
 // the app meets it, mean beside median (the model predicts sums, so it uses the mean), and the
-// throughput lost to time-sharing.
+// throughput lost to time-sharing. With --overlapped also the shift of sph --overlap (counts on
+// the handshake, payloads posted, the work behind them, receives completed): only posting and
+// completion are timed, the part no overlap hides, by the compute behind the transfers.
 #include "mpi_program.hpp"
 #include "sphperf/cli.hpp"
 #include "sphperf/report.hpp"
@@ -40,6 +42,7 @@ struct Config {
     std::int64_t work_bytes = std::int64_t{2} << 20;
     std::optional<std::filesystem::path> json;
     bool quiet = false;
+    bool overlapped = false;
 };
 
 Config parse(int argc, char **argv) {
@@ -68,6 +71,11 @@ Config parse(int argc, char **argv) {
     app.add_option("--work-bytes", cfg.work_bytes,
                    "Buffer the work streams through per rank (cache footprint of the compute)")
         ->check(CLI::Range(std::int64_t{4096}, std::int64_t{1} << 32));
+    app.add_flag("--overlapped", cfg.overlapped,
+                 "Also measure the overlapped exchange of sph --overlap: counts on the "
+                 "handshake, payloads posted non-blocking, the work behind them, then the "
+                 "receives completed (its points carry \"overlapped\": true and the work as "
+                 "their gap)");
     app.add_option("--json", cfg.json, "Write the JSON report to this file");
     app.add_flag("--quiet", cfg.quiet, "No progress lines on stderr");
     parse_cli(app, argc, argv);
@@ -128,7 +136,7 @@ struct Chain {
 
 // The app's shift (sph/src/domain.cpp Domain::shift): handshake, then count and payload each way.
 struct ShiftTimes {
-    double wait_s = 0, comm_s = 0;
+    double wait_s = 0, comm_s = 0, behind_s = 0; // behind_s: work while the payloads travel
 };
 ShiftTimes shift(const Chain &c, std::vector<char> &out, std::vector<char> &in) {
     const double t0 = wall_seconds();
@@ -149,18 +157,74 @@ ShiftTimes shift(const Chain &c, std::vector<char> &out, std::vector<char> &in) 
     return {t1 - t0, wall_seconds() - t1};
 }
 
+// The app's overlapped shift (Domain::post_shift / complete_shift): the counts ride on the
+// handshake, the payloads are posted (after completing the previous round's sends), `behind`
+// runs while they travel, then the receives complete. Only the posting and the completion are
+// communication: what an overlap leaves exposed.
+class OverlappedShift {
+public:
+    template <class Behind>
+    ShiftTimes run(const Chain &c, std::vector<char> &out, std::vector<char> &in, Behind behind) {
+        const double t0 = wall_seconds();
+        const int bytes = static_cast<int>(out.size());
+        int from_w = 0, from_e = 0;
+        MPI_Sendrecv(&bytes, 1, MPI_INT, c.east, tag_shift, &from_w, 1, MPI_INT, c.west, tag_shift,
+                     MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        MPI_Sendrecv(&bytes, 1, MPI_INT, c.west, tag_shift, &from_e, 1, MPI_INT, c.east, tag_shift,
+                     MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        const double t1 = wall_seconds();
+        MPI_Waitall(static_cast<int>(sends_.size()), sends_.data(), MPI_STATUSES_IGNORE);
+        sends_.clear();
+        in_east_.resize(in.size());
+        std::vector<MPI_Request> receives;
+        auto post = [&](bool send, void *buf, int peer) {
+            if (peer == MPI_PROC_NULL)
+                return;
+            MPI_Request r;
+            if (send) {
+                MPI_Isend(buf, bytes, MPI_BYTE, peer, tag_shift, MPI_COMM_WORLD, &r);
+                sends_.push_back(r);
+            } else {
+                MPI_Irecv(buf, bytes, MPI_BYTE, peer, tag_shift, MPI_COMM_WORLD, &r);
+                receives.push_back(r);
+            }
+        };
+        post(false, in.data(), c.west);
+        post(false, in_east_.data(), c.east);
+        post(true, out.data(), c.east);
+        post(true, out.data(), c.west);
+        const double t2 = wall_seconds();
+        behind();
+        const double t3 = wall_seconds();
+        MPI_Waitall(static_cast<int>(receives.size()), receives.data(), MPI_STATUSES_IGNORE);
+        const double t4 = wall_seconds();
+        return {t1 - t0, (t2 - t1) + (t4 - t3), t3 - t2};
+    }
+    void finish() {
+        MPI_Waitall(static_cast<int>(sends_.size()), sends_.data(), MPI_STATUSES_IGNORE);
+        sends_.clear();
+    }
+
+private:
+    std::vector<MPI_Request> sends_;
+    std::vector<char> in_east_;
+};
+
 struct Point {
+    bool overlapped = false;
     double gap_work_us = 0, payload_bytes = 0, rounds = 0;
     Summary shift; // comm per shift, over all ranks and rounds
     double shift_p90_s = 0;
-    double gap_s_mean = 0;  // end of the previous shift to the first transfer (work + wait)
+    // End of the previous shift to the first transfer (work + wait); overlapped: the work
+    // behind the transfers, which is what the app knows when it completes them.
+    double gap_s_mean = 0;
     double work_s_mean = 0; // the work's wall time (longer than alone when ranks take turns)
     double wait_s_mean = 0;
     double round_s_mean = 0; // wall time per exchange round, slowest rank
 };
 
 Point measure(const Config &cfg, const Chain &chain, Work &work, double elements_per_us,
-              double gap_us, int bytes, int size, int cores) {
+              double gap_us, int bytes, int size, int cores, bool overlapped) {
     const auto elements = static_cast<std::int64_t>(std::llround(gap_us * elements_per_us));
     // Estimated round length, assuming the ranks share the cores fairly.
     const double round_guess_s =
@@ -168,26 +232,33 @@ Point measure(const Config &cfg, const Chain &chain, Work &work, double elements
     const int rounds = std::clamp(static_cast<int>(cfg.seconds_per_point / round_guess_s),
                                   cfg.min_rounds, cfg.max_rounds);
     std::vector<char> out(static_cast<std::size_t>(bytes), 'x'), in(out.size());
-    quiet_barrier(MPI_COMM_WORLD);
-    for (int i = 0; i < warmup_rounds; ++i) {
+    OverlappedShift ovl;
+    // One round: the work, then the shift; overlapped, the work runs behind the transfers.
+    auto round = [&] {
+        if (overlapped)
+            return ovl.run(chain, out, in, [&] { work.run(elements); });
+        const double t0 = wall_seconds();
         work.run(elements);
-        shift(chain, out, in);
-    }
+        ShiftTimes s = shift(chain, out, in);
+        s.behind_s = wall_seconds() - t0 - s.wait_s - s.comm_s;
+        return s;
+    };
+    quiet_barrier(MPI_COMM_WORLD);
+    for (int i = 0; i < warmup_rounds; ++i)
+        round();
     std::vector<double> comm, gap, work_t, wait;
     double prev_end = wall_seconds();
     const double start = prev_end;
     for (int i = 0; i < rounds; ++i) {
-        const double t0 = wall_seconds();
-        work.run(elements);
-        const double t1 = wall_seconds();
-        const ShiftTimes s = shift(chain, out, in);
+        const ShiftTimes s = round();
         const double end = wall_seconds();
-        work_t.push_back(t1 - t0);
+        work_t.push_back(s.behind_s);
         wait.push_back(s.wait_s);
         comm.push_back(s.comm_s);
-        gap.push_back(end - s.comm_s - prev_end);
+        gap.push_back(overlapped ? s.behind_s : end - s.comm_s - prev_end);
         prev_end = end;
     }
+    ovl.finish();
     const double elapsed = prev_end - start;
     // Everything to rank 0: every rank's samples count (edge ranks send or receive only).
     auto gather = [&](const std::vector<double> &v) {
@@ -201,6 +272,7 @@ Point measure(const Config &cfg, const Chain &chain, Work &work, double elements
     double slowest = 0;
     MPI_Reduce(&elapsed, &slowest, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
     Point p;
+    p.overlapped = overlapped;
     p.gap_work_us = gap_us;
     p.payload_bytes = bytes;
     p.rounds = rounds;
@@ -250,6 +322,7 @@ nlohmann::json point_json(const Point &p, int size, int cores) {
     const double share = std::max(1.0, std::ceil(static_cast<double>(size) / cores));
     const double ideal = p.gap_work_us * 1e-6 * share;
     return {
+        {"overlapped", p.overlapped},
         {"gap_work_us", p.gap_work_us},
         {"payload_bytes", p.payload_bytes},
         {"rounds", p.rounds},
@@ -282,22 +355,27 @@ int run(int argc, char **argv, int rank, int size) {
     Work work(cfg.work_bytes);
     const double rate = calibrate(work, rank);
     nlohmann::json points = nlohmann::json::array();
-    const std::size_t total = cfg.gaps_us.size() * cfg.payload_bytes.size();
+    std::vector<bool> modes{false};
+    if (cfg.overlapped)
+        modes.push_back(true);
+    const std::size_t total = modes.size() * cfg.gaps_us.size() * cfg.payload_bytes.size();
     std::size_t done = 0;
-    for (const int bytes : cfg.payload_bytes)
-        for (const double gap : cfg.gaps_us) {
-            const Point p = measure(cfg, chain, work, rate, gap, bytes, size, cores);
-            ++done;
-            if (rank == 0) {
-                points.push_back(point_json(p, size, cores));
-                if (!cfg.quiet)
-                    std::fprintf(stderr,
-                                 "exchange: %zu/%zu  %d ranks, gap %6.0f us, %6d B: shift mean "
-                                 "%.2f us, median %.2f us\n",
-                                 done, total, size, gap, bytes, p.shift.avg * 1e6,
-                                 p.shift.median * 1e6);
+    for (const bool overlapped : modes)
+        for (const int bytes : cfg.payload_bytes)
+            for (const double gap : cfg.gaps_us) {
+                const Point p =
+                    measure(cfg, chain, work, rate, gap, bytes, size, cores, overlapped);
+                ++done;
+                if (rank == 0) {
+                    points.push_back(point_json(p, size, cores));
+                    if (!cfg.quiet)
+                        std::fprintf(stderr,
+                                     "exchange: %zu/%zu  %d ranks, %s, gap %6.0f us, %6d B: "
+                                     "shift mean %.2f us, median %.2f us\n",
+                                     done, total, size, overlapped ? "overlapped" : "blocking", gap,
+                                     bytes, p.shift.avg * 1e6, p.shift.median * 1e6);
+                }
             }
-        }
     double sink = work.sink(), total_sink = 0;
     MPI_Reduce(&sink, &total_sink, 1, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     if (rank == 0) {
@@ -307,26 +385,31 @@ int run(int argc, char **argv, int rank, int size) {
                             {"seconds_per_point", cfg.seconds_per_point},
                             {"min_rounds", cfg.min_rounds},
                             {"max_rounds", cfg.max_rounds},
-                            {"work_bytes", cfg.work_bytes}};
+                            {"work_bytes", cfg.work_bytes},
+                            {"overlapped", cfg.overlapped}};
         report["ranks"] = size;
         report["cores"] = cores;
         report["oversubscribed"] = size > cores;
         report["work_elements_per_us"] = rate;
         report["work_checksum"] = total_sink; // keeps the work from being optimised away
         report["points"] = points;
-        std::printf("exchange on %d ranks (%d cores): mean / median shift cost, us\n", size, cores);
-        std::printf("%10s", "gap us");
-        for (const int b : cfg.payload_bytes)
-            std::printf("  %17d B", b);
-        std::printf("\n");
-        for (std::size_t g = 0; g < cfg.gaps_us.size(); ++g) {
-            std::printf("%10.0f", cfg.gaps_us[g]);
-            for (std::size_t b = 0; b < cfg.payload_bytes.size(); ++b) {
-                const auto &s = points[b * cfg.gaps_us.size() + g]["shift"];
-                std::printf("  %8.2f / %8.2f", s["mean_s"].get<double>() * 1e6,
-                            s["median_s"].get<double>() * 1e6);
-            }
+        const std::size_t per_mode = cfg.gaps_us.size() * cfg.payload_bytes.size();
+        for (std::size_t m = 0; m < modes.size(); ++m) {
+            std::printf("exchange on %d ranks (%d cores), %s: mean / median shift cost, us\n", size,
+                        cores, modes[m] ? "overlapped (exposed part)" : "blocking");
+            std::printf("%10s", modes[m] ? "behind us" : "gap us");
+            for (const int b : cfg.payload_bytes)
+                std::printf("  %17d B", b);
             std::printf("\n");
+            for (std::size_t g = 0; g < cfg.gaps_us.size(); ++g) {
+                std::printf("%10.0f", cfg.gaps_us[g]);
+                for (std::size_t b = 0; b < cfg.payload_bytes.size(); ++b) {
+                    const auto &s = points[m * per_mode + b * cfg.gaps_us.size() + g]["shift"];
+                    std::printf("  %8.2f / %8.2f", s["mean_s"].get<double>() * 1e6,
+                                s["median_s"].get<double>() * 1e6);
+                }
+                std::printf("\n");
+            }
         }
         JsonSink(cfg.json).write(report);
     }

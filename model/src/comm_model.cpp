@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <tuple>
 
 namespace sphperf::model {
 
@@ -134,6 +136,7 @@ ExchangeModel ExchangeModel::from_profile(const nlohmann::json &machine) {
             x.mean_s =
                 number(p.value("shift", nlohmann::json()), "mean_s", where + "/points/shift");
             x.median_s = p["shift"].value("median_s", x.mean_s);
+            x.overlapped = p.value("overlapped", false);
             if (p.contains("round_overhead") && p["round_overhead"].is_number())
                 x.overhead = p["round_overhead"].get<double>();
             if (x.gap_s < 0 || x.bytes <= 0 || x.mean_s < 0)
@@ -141,7 +144,8 @@ ExchangeModel ExchangeModel::from_profile(const nlohmann::json &machine) {
             s.points.push_back(x);
         }
         std::sort(s.points.begin(), s.points.end(), [](const auto &a, const auto &b) {
-            return a.bytes != b.bytes ? a.bytes < b.bytes : a.gap_s < b.gap_s;
+            return std::tie(a.overlapped, a.bytes, a.gap_s) <
+                   std::tie(b.overlapped, b.bytes, b.gap_s);
         });
         m.sets_.push_back(std::move(s));
     }
@@ -168,25 +172,31 @@ const ExchangeSet &ExchangeModel::set_for(int ranks, int threads, int cores) con
 namespace {
 constexpr double smallest_gap_s = 1e-7; // gaps below a tenth of a microsecond are the same
 
-// y(gap) of one payload, interpolated in log(gap).
+// y(gap) of one payload and kind, interpolated in log(gap).
 template <class Get>
-double along_gap(const std::vector<ExchangePoint> &pts, double bytes, double gap_s, Get get) {
+double along_gap(const std::vector<ExchangePoint> &pts, double bytes, bool overlapped, double gap_s,
+                 Get get) {
     std::vector<std::pair<double, double>> xy;
     for (const auto &p : pts)
-        if (p.bytes == bytes)
+        if (p.bytes == bytes && p.overlapped == overlapped)
             xy.emplace_back(std::log(std::max(p.gap_s, smallest_gap_s)), get(p));
     std::sort(xy.begin(), xy.end());
     return interpolate(xy, std::log(std::max(gap_s, smallest_gap_s)));
 }
 } // namespace
 
-double ExchangeModel::shift_seconds(const ExchangeSet &set, double gap_s, double bytes) {
+double ExchangeModel::shift_seconds(const ExchangeSet &set, double gap_s, double bytes,
+                                    bool overlapped) {
     std::vector<double> sizes;
     for (const auto &p : set.points)
-        if (sizes.empty() || sizes.back() != p.bytes)
+        if (p.overlapped == overlapped && (sizes.empty() || sizes.back() != p.bytes))
             sizes.push_back(p.bytes);
+    if (sizes.empty())
+        throw std::logic_error(std::string("exchange set without ") +
+                               (overlapped ? "overlapped" : "blocking") + " points");
     auto at = [&](double b) {
-        return along_gap(set.points, b, gap_s, [](const ExchangePoint &p) { return p.mean_s; });
+        return along_gap(set.points, b, overlapped, gap_s,
+                         [](const ExchangePoint &p) { return p.mean_s; });
     };
     if (sizes.size() == 1 || bytes <= sizes.front())
         return at(sizes.front());
@@ -211,7 +221,7 @@ double ExchangeModel::round_overhead(const ExchangeSet &set, double gap_s) {
     // Every payload's points together: the overhead hardly depends on the payload.
     std::vector<std::pair<double, double>> xy;
     for (const auto &p : set.points)
-        if (p.overhead > 0)
+        if (p.overhead > 0 && !p.overlapped)
             xy.emplace_back(std::log(std::max(p.gap_s, smallest_gap_s)), p.overhead);
     if (xy.empty())
         return 1.0;

@@ -311,17 +311,25 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
             return crosses ? std::max(measured, hockney) : measured;
         };
         // --overlap: the ghost and density exchanges run behind the interior columns of a
-        // stage (about a third of the step's compute, as the gap). Exposed stays what no
-        // overlap hides, the rank taking in each received payload (its one-way Hockney
-        // time), or the shift's cost beyond the compute behind it (as sph --machine costs it).
+        // stage (about a third of the step's compute, as the gap). Exposed stays what the
+        // exchange benchmark measured of an overlapped shift with that much compute behind it
+        // (exchange --overlapped), as sph --machine costs it; without such a measurement, what
+        // no overlap hides, the rank taking in each received payload (its one-way Hockney
+        // time), or the shift's cost beyond the compute behind it.
         auto overlapped = [&](double per_particle) {
+            const double behind = s.compute_s / shifts_per_step;
+            if (set && set->has_overlapped() && !crosses) {
+                const double most =
+                    std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
+                return ExchangeModel::shift_seconds(*set, behind, most * per_particle, true);
+            }
             double exposed = 0;
             if (west)
                 exposed += message(r - 1, r, in_from_west * per_particle);
             if (east)
                 exposed += message(r + 1, r, in_from_east * per_particle);
             const double full = std::max(exchange(per_particle), exposed);
-            return std::max(exposed, full - s.compute_s / shifts_per_step);
+            return std::max(exposed, full - behind);
         };
         s.comm_s =
             exchange(0.0) + (c.overlap ? overlapped(c.record_bytes) + overlapped(density_bytes)

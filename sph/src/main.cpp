@@ -286,6 +286,10 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
         domain.attach_shift_cost([set](double since_any_s, double since_kind_s, double bytes) {
             return model::ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes);
         });
+        if (set->has_overlapped())
+            domain.attach_exposed_cost([set](double behind_s, double bytes) {
+                return model::ExchangeModel::shift_seconds(*set, behind_s, bytes, true);
+            });
         // Above the cores a back-to-back shift waits for descheduled neighbours: no mode shows.
         // The probe is collective: every rank must agree (nodes may differ in cores).
         const bool within = set->load() <= 1 && domain.ranks() > 1;
@@ -304,8 +308,8 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
         return [comm, a, b](double bytes) { return comm->seconds(a, b, bytes); };
     };
     domain.attach_cost(link(domain.west(), true), link(domain.east(), true));
-    // --overlap: a received payload costs its one-way Hockney time, exposed whatever the
-    // compute behind it (sph/README.md).
+    // --overlap without an overlapped exchange measurement: a received payload costs at least
+    // its one-way Hockney time, exposed whatever the compute behind it (sph/README.md).
     domain.attach_overlap_cost(link(domain.west(), false), link(domain.east(), false));
     return probe_s;
 }

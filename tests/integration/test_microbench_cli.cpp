@@ -151,12 +151,15 @@ const std::string tiny_exchange =
 
 // The app's shift as a benchmark: every (payload, gap) point, mean beside median, at 2 and 3
 // ranks (3 is above this machine's cores: the round overhead is reported); 1 rank is refused.
+// At 3 ranks also overlapped (sph --overlap): a second set of points, the work behind the
+// transfers as their gap.
 TEST(ExchangeCli, OneTwoAndThreeRanks) {
     for (int ranks : {1, 2, 3}) {
         const auto dir = scratch("exchange" + std::to_string(ranks));
         const auto out = dir / "e.json";
-        const auto r =
-            run(mpirun(ranks) + bin("exchange") + tiny_exchange + " --json " + out.string());
+        const bool overlapped = ranks == 3;
+        const auto r = run(mpirun(ranks) + bin("exchange") + tiny_exchange +
+                           (overlapped ? " --overlapped" : "") + " --json " + out.string());
         if (ranks == 1) {
             EXPECT_EQ(r.code, 2);
             EXPECT_NE(r.err.find("at least 2 MPI ranks"), std::string::npos) << r.err;
@@ -167,7 +170,17 @@ TEST(ExchangeCli, OneTwoAndThreeRanks) {
         const auto j = load(out);
         expect_envelope(j, "exchange");
         EXPECT_EQ(j["ranks"].get<int>(), ranks);
-        ASSERT_EQ(j["points"].size(), 4u);
+        ASSERT_EQ(j["points"].size(), overlapped ? 8u : 4u);
+        EXPECT_EQ(j["config"]["overlapped"].get<bool>(), overlapped);
+        for (std::size_t i = 0; i < j["points"].size(); ++i)
+            EXPECT_EQ(j["points"][i]["overlapped"].get<bool>(), i >= 4) << i;
+        if (overlapped) {
+            // The overlapped point with 200 us of work behind its transfers says so.
+            EXPECT_EQ(j["points"][5]["gap_work_us"].get<double>(), 200);
+            EXPECT_GT(j["points"][5]["gap_s_mean"].get<double>(), 100e-6);
+            EXPECT_LT(j["points"][4]["gap_s_mean"].get<double>(), 100e-6);
+            EXPECT_NE(r.out.find("overlapped (exposed part)"), std::string::npos) << r.out;
+        }
         expect_keys(j, {"/points/0/gap_s_mean", "/points/0/payload_bytes", "/points/0/shift/mean_s",
                         "/points/0/shift/median_s", "/points/0/shift/p90_s",
                         "/points/0/round_s_mean", "/work_elements_per_us"});

@@ -417,6 +417,31 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
         sums.push_back(sum);
     }
     EXPECT_NEAR(sums[1] / sums[0], 2.0, 1e-9);
+    // With overlapped points (exchange --overlapped) an --overlap run costs its ghost and
+    // density exchanges from them: per rank and step one blocking migration shift and two
+    // overlapped ones, each at its table's flat cost.
+    {
+        auto j = load(flat("blocking_part.json", 1e-3, 2, host));
+        auto points = j["points"];
+        for (auto p : j["points"]) {
+            p["overlapped"] = true;
+            p["shift"]["mean_s"] = 1e-1;
+            points.push_back(p);
+        }
+        j["points"] = points;
+        const auto exchange = dir / "with_overlapped.json";
+        std::ofstream(exchange) << j.dump();
+        const auto report = dir / "overlapped_run.json";
+        r = still_sorted_with_profile(2, machine, report,
+                                      " --overlap --exchange " + exchange.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto measured = load(report);
+        double sum = 0;
+        for (const auto &iv : measured["intervals"])
+            for (const auto &rk : iv["ranks"])
+                sum += rk["comm_predict_s"].get<double>();
+        EXPECT_NEAR(sum, 2 * 20 * (1e-3 + 2 * 1e-1), 1e-9);
+    }
 
     const auto out = dir / "refused.json";
     for (const auto &[exchange, expect] :

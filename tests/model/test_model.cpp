@@ -585,6 +585,51 @@ TEST(Comm, ExchangeTableInterpolatesAndMatchesTheLoad) {
     }
 }
 
+// Overlapped points (exchange --overlapped) are a table of their own: each kind interpolates
+// among its own points, the round overhead comes from the blocking ones, and a set without
+// overlapped points says so.
+TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
+    using sphperf::model::ExchangeModel;
+    auto blocking = [](double gap, double bytes) {
+        return 2e-6 + 1e-6 * gap / 1e-3 + 1e-9 * bytes;
+    };
+    auto exposed = [](double gap, double bytes) {
+        return 5e-7 + 1e-7 * gap / 1e-3 + 2e-10 * bytes;
+    };
+    nlohmann::json pts = nlohmann::json::array();
+    for (bool ovl : {true, false}) // overlapped first: the order in the report must not matter
+        for (double bytes : {64.0, 16384.0})
+            for (double gap : {1e-3, 1e-2})
+                pts.push_back(
+                    {{"gap_s_mean", gap},
+                     {"payload_bytes", bytes},
+                     {"overlapped", ovl},
+                     {"round_overhead", ovl ? 5.0 : 1.5},
+                     {"shift", {{"mean_s", ovl ? exposed(gap, bytes) : blocking(gap, bytes)}}}});
+    auto without = pts;
+    without.erase(without.begin(), without.begin() + 4);
+    const auto m = ExchangeModel::from_profile(
+        {{"exchange", {{{"ranks", 2}, {"cores", 2}, {"points", pts}}}}});
+    const auto &set = m.set_for(2, 1, 2);
+    EXPECT_TRUE(set.has_overlapped());
+    // Both tables are linear in the gap and the payload between points; log-linear
+    // interpolation in the gap is exact at the points and the payload is linear.
+    for (double gap : {1e-3, 1e-2})
+        for (double bytes : {64.0, 1000.0, 16384.0}) {
+            EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes), blocking(gap, bytes), 1e-12);
+            EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes, true), exposed(gap, bytes),
+                        1e-12);
+        }
+    const auto ranks3 = ExchangeModel::from_profile(
+        {{"exchange", {{{"ranks", 3}, {"cores", 2}, {"points", pts}}}}});
+    EXPECT_NEAR(ExchangeModel::round_overhead(ranks3.sets().front(), 3e-3), 1.5, 1e-12);
+    const auto plain = ExchangeModel::from_profile(
+        {{"exchange", {{{"ranks", 2}, {"cores", 2}, {"points", without}}}}});
+    EXPECT_FALSE(plain.sets().front().has_overlapped());
+    EXPECT_THROW(ExchangeModel::shift_seconds(plain.sets().front(), 1e-3, 64, true),
+                 std::logic_error);
+}
+
 TEST(Validate, FlagsAPlantedTwentyPercentError) {
     bool exceeded = false;
     ValidateOptions strict;

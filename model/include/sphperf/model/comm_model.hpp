@@ -4,6 +4,7 @@
 // so a 17 KB ghost message is costed with the piece its size falls in.
 #include "sphperf/model/hockney.hpp"
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 
 #include <string>
@@ -50,13 +51,20 @@ private:
 // the mean cost of one shift (handshake excluded: counts and payloads both ways) by the gap of
 // compute before it and the payload, per rank count, and the round overhead of time-sharing.
 // The mean, not the median: the model predicts sums and the cost has a heavy tail.
+// `overlapped` points (exchange --overlapped) measure what sph --overlap leaves exposed of a
+// shift: posting the payloads and completing the receives, with `gap_s` the compute behind them.
 struct ExchangePoint {
     double gap_s = 0, bytes = 0, mean_s = 0, median_s = 0, overhead = 0; // overhead 0: unknown
+    bool overlapped = false;
 };
 struct ExchangeSet {
     int ranks = 0, cores = 0;
     std::vector<ExchangePoint> points;
     double load() const { return static_cast<double>(ranks) / cores; }
+    bool has_overlapped() const {
+        return std::any_of(points.begin(), points.end(),
+                           [](const ExchangePoint &p) { return p.overlapped; });
+    }
 };
 
 class ExchangeModel {
@@ -68,7 +76,10 @@ public:
     const ExchangeSet &set_for(int ranks, int threads, int cores) const;
     // Mean seconds of one shift after `gap_s` of compute, carrying `bytes` per payload:
     // log-linear in the gap between measured gaps (held at the ends), linear in the payload.
-    static double shift_seconds(const ExchangeSet &set, double gap_s, double bytes);
+    // `overlapped`: the exposed part of an overlapped shift with `gap_s` of compute behind it
+    // (the set must have such points).
+    static double shift_seconds(const ExchangeSet &set, double gap_s, double bytes,
+                                bool overlapped = false);
     // One of the app's shifts, `since_any_s` after its previous shift of any kind and
     // `since_kind_s` after the previous one of its own kind (migration, ghosts, densities).
     // Within the cores the second decides: each kind recurs once a step with its own payload,

@@ -64,6 +64,9 @@ using MessageCost = std::function<double(double bytes)>;
 // previous shift and `since_kind_s` after its previous one of the same kind, with payloads of
 // `bytes`.
 using ShiftCost = std::function<double(double since_any_s, double since_kind_s, double bytes)>;
+// What an overlapped shift leaves exposed (posting and completion) with `behind_s` of compute
+// behind its transfers and `bytes` per payload (exchange --overlapped).
+using ExposedCost = std::function<double(double behind_s, double bytes)>;
 
 class Domain {
 public:
@@ -84,6 +87,8 @@ public:
         overlap_west_ = std::move(west);
         overlap_east_ = std::move(east);
     }
+    // The overlapped shift as measured whole; when attached it replaces the per-message bound.
+    void attach_exposed_cost(ExposedCost c) { exposed_cost_ = std::move(c); }
     CommTally take_tally() { return std::exchange(tally_, CommTally{}); }
     // The machine's latency mode now (sph --machine within the cores): the mean time of 64
     // back-to-back 64-byte shifts after 64 untimed ones, the exchange benchmark's gap-0 point,
@@ -173,6 +178,7 @@ private:
     PhaseTimers *timers_ = nullptr;
     MessageCost cost_west_, cost_east_, overlap_west_, overlap_east_;
     ShiftCost shift_cost_;
+    ExposedCost exposed_cost_;
     bool probe_ = false;
     // When this rank's previous shift of any kind, and of each kind (migration, ghosts,
     // densities), ended (wall clock): what a shift costs depends on both
