@@ -143,6 +143,10 @@ ExchangeModel ExchangeModel::from_profile(const nlohmann::json &machine) {
                 throw UsageError(where + " has a point with a negative gap or cost, or no payload");
             s.points.push_back(x);
         }
+        if (std::all_of(s.points.begin(), s.points.end(),
+                        [](const ExchangePoint &p) { return p.overlapped; }))
+            throw UsageError(where + " at " + std::to_string(s.ranks) +
+                             " ranks has overlapped points only (expected blocking ones too)");
         std::sort(s.points.begin(), s.points.end(), [](const auto &a, const auto &b) {
             return std::tie(a.overlapped, a.bytes, a.gap_s) <
                    std::tie(b.overlapped, b.bytes, b.gap_s);

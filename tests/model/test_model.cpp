@@ -628,6 +628,17 @@ TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
     EXPECT_FALSE(plain.sets().front().has_overlapped());
     EXPECT_THROW(ExchangeModel::shift_seconds(plain.sets().front(), 1e-3, 64, true),
                  std::logic_error);
+    // A set the blocking shifts cannot be costed from is refused when read, by name.
+    auto only = pts;
+    only.erase(only.begin() + 4, only.end());
+    try {
+        ExchangeModel::from_profile(
+            {{"exchange", {{{"ranks", 2}, {"cores", 2}, {"points", only}}}}});
+        ADD_FAILURE() << "a set of overlapped points only was accepted";
+    } catch (const sphperf::UsageError &e) {
+        EXPECT_NE(std::string(e.what()).find("overlapped points only"), std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(Validate, FlagsAPlantedTwentyPercentError) {
