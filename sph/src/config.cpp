@@ -69,7 +69,7 @@ FaultInjection parse_fault(std::string_view s) {
     const std::string text(s);
     const auto bad = [&] {
         return UsageError("SPHPERF_INJECT_FAULT='" + text +
-                          "': expected KIND:RANK:STEP with KIND throw or nan, RANK >= 0, "
+                          "': expected KIND:RANK:STEP with KIND throw, nan or leak, RANK >= 0, "
                           "STEP >= 1");
     };
     const auto a = text.find(':'), b = text.find(':', a == std::string::npos ? a : a + 1);
@@ -81,6 +81,8 @@ FaultInjection parse_fault(std::string_view s) {
         f.kind = FaultInjection::Kind::exception;
     else if (kind == "nan")
         f.kind = FaultInjection::Kind::nan;
+    else if (kind == "leak")
+        f.kind = FaultInjection::Kind::leak;
     else
         throw bad();
     try {

@@ -308,8 +308,9 @@ TEST_P(SphFaultTest, EndsTheWholeJobNamingRankAndStep) {
     EXPECT_NE(r.code, 124) << "the job hung: " << r.err;
     EXPECT_NE(r.err.find(f.expect), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(report)) << "a failed run wrote a report";
-    if (f.fault.starts_with("nan")) {
-        const auto rank = f.fault.substr(4, f.fault.rfind(':') - 4);
+    if (!f.fault.starts_with("throw")) {
+        const auto colon = f.fault.find(':') + 1;
+        const auto rank = f.fault.substr(colon, f.fault.rfind(':') - colon);
         const auto step = f.fault.substr(f.fault.rfind(':') + 1);
         char name[64];
         std::snprintf(name, sizeof name, "sph_failure_step%s_r%03d.vtu", step.c_str(),
@@ -325,7 +326,9 @@ INSTANTIATE_TEST_SUITE_P(
                       Fault{"throw_r3", "throw:1:5", "rank 1 of 3: step 5: injected fault", 3},
                       Fault{"nan_r1", "nan:0:4",
                             "step 4: fluid particle id 0 has a non-finite velocity", 1},
-                      Fault{"nan_r3", "nan:2:3", "rank 2 of 3: step 3:", 3}),
+                      Fault{"nan_r3", "nan:2:3", "rank 2 of 3: step 3:", 3},
+                      Fault{"leak_r2", "leak:0:2",
+                            "step 2: fluid particle id 0 has left the tank (0 <= x <= ", 2}),
     [](const auto &info) { return info.param.name; });
 
 TEST(SphCli, BadFaultInjectionIsAUsageError) {

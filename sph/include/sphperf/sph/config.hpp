@@ -75,10 +75,11 @@ struct Geometry {
 };
 
 // A deliberate failure on one rank at one step, for the tests of the abort path: environment
-// SPHPERF_INJECT_FAULT="KIND:RANK:STEP", KIND `throw` (an exception) or `nan` (a NaN velocity,
-// caught by the state check). Never set in production runs.
+// SPHPERF_INJECT_FAULT="KIND:RANK:STEP", KIND `throw` (an exception), `nan` (a NaN velocity) or
+// `leak` (a fluid particle below the floor), the last two caught by the state check. Never set
+// in production runs.
 struct FaultInjection {
-    enum class Kind { exception, nan };
+    enum class Kind { exception, nan, leak };
     Kind kind = Kind::exception;
     int rank = 0;
     std::int64_t step = 0;
