@@ -274,6 +274,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     const int most_on_a_node = (P + nodes - 1) / nodes;
     const ExchangeSet *set =
         c.exchange.empty() ? nullptr : &c.exchange.set_for(most_on_a_node, threads, c.cores);
+    const bool overlap_measured = set && set->has_overlapped();
     // One message: across nodes the other_node class, within one the link of the two units.
     auto message = [&](int from, int to, double bytes) {
         return same_node(from, to) ? c.comm.seconds(pu(from), pu(to), bytes)
@@ -288,6 +289,9 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         const bool crosses = (west && !same_node(r, r - 1)) || (east && !same_node(r, r + 1));
         const double in_from_west = west ? loads[static_cast<std::size_t>(r - 1)].export_east : -1;
         const double in_from_east = east ? loads[static_cast<std::size_t>(r + 1)].export_west : -1;
+        // The measured tables are by payload: the largest of this rank's four, in particles.
+        const double most =
+            std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
         auto exchange = [&](double per_particle) {
             // One MPI_Sendrecv: both directions travel at once, it lasts the longer one.
             auto sendrecv = [&](int to, double out_b, int from, double in_b) {
@@ -303,8 +307,6 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
                       l.export_west * per_particle, std::max(0.0, in_from_east) * per_particle);
             if (!set)
                 return hockney;
-            const double most =
-                std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
             const double measured =
                 ExchangeModel::app_shift_seconds(*set, gap, busy, most * per_particle);
             // A shift that leaves the node lasts at least its network messages.
@@ -318,11 +320,8 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         // time), or the shift's cost beyond the compute behind it.
         auto overlapped = [&](double per_particle) {
             const double behind = s.compute_s / shifts_per_step;
-            if (set && set->has_overlapped() && !crosses) {
-                const double most =
-                    std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
+            if (overlap_measured && !crosses)
                 return ExchangeModel::shift_seconds(*set, behind, most * per_particle, true);
-            }
             double exposed = 0;
             if (west)
                 exposed += message(r - 1, r, in_from_west * per_particle);

@@ -279,6 +279,7 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
         cfg.exchange ? exchange_override(*cfg.exchange, profile, domain.ranks(), threads)
                      : profile);
     double probe_s = 0;
+    bool overlap_measured = false;
     constexpr double probe_bytes = 64; // Domain::probe_latency's payload
     if (!exchange.empty()) {
         const auto set = std::make_shared<model::ExchangeSet>(
@@ -286,10 +287,12 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
         domain.attach_shift_cost([set](double since_any_s, double since_kind_s, double bytes) {
             return model::ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes);
         });
-        if (set->has_overlapped())
+        if (set->has_overlapped()) {
+            overlap_measured = true;
             domain.attach_exposed_cost([set](double behind_s, double bytes) {
                 return model::ExchangeModel::shift_seconds(*set, behind_s, bytes, true);
             });
+        }
         // Above the cores a back-to-back shift waits for descheduled neighbours: no mode shows.
         // The probe is collective: every rank must agree (nodes may differ in cores).
         const bool within = set->load() <= 1 && domain.ranks() > 1;
@@ -310,7 +313,8 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
     domain.attach_cost(link(domain.west(), true), link(domain.east(), true));
     // --overlap without an overlapped exchange measurement: a received payload costs at least
     // its one-way Hockney time, exposed whatever the compute behind it (sph/README.md).
-    domain.attach_overlap_cost(link(domain.west(), false), link(domain.east(), false));
+    if (!overlap_measured)
+        domain.attach_overlap_cost(link(domain.west(), false), link(domain.east(), false));
     return probe_s;
 }
 
