@@ -32,6 +32,28 @@ std::string utc_timestamp() {
     return buf.data();
 }
 
+namespace {
+// Open MPI's transport and tuning parameters set in the environment (scripts/mpirun.sh sets the
+// shared-memory eager limit): every communication figure depends on them. mpirun's own
+// launch bookkeeping (orte_, ess_, session paths) is left out.
+nlohmann::json mca_environment() {
+    constexpr std::string_view prefix = "OMPI_MCA_";
+    constexpr std::array<std::string_view, 4> kept{"btl_", "pml_", "coll_", "mpi_"};
+    nlohmann::json mca = nlohmann::json::object();
+    for (char **e = environ; *e != nullptr; ++e) {
+        const std::string_view entry(*e);
+        const auto eq = entry.find('=');
+        if (entry.substr(0, prefix.size()) != prefix || eq == std::string_view::npos)
+            continue;
+        const std::string_view name = entry.substr(prefix.size(), eq - prefix.size());
+        for (const auto k : kept)
+            if (name.substr(0, k.size()) == k)
+                mca[std::string(name)] = std::string(entry.substr(eq + 1));
+    }
+    return mca;
+}
+} // namespace
+
 nlohmann::json report_header(std::string_view benchmark, const Topology &topo) {
     return {{"schema", report_schema},
             {"benchmark", benchmark},
@@ -42,7 +64,8 @@ nlohmann::json report_header(std::string_view benchmark, const Topology &topo) {
              {{"compiler", build::compiler()},
               {"flags", build::flags()},
               {"build_type", build::build_type()}}},
-            {"topology", topo.summary()}};
+            {"topology", topo.summary()},
+            {"mpi_mca", mca_environment()}};
 }
 
 namespace {

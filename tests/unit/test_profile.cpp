@@ -1,5 +1,9 @@
 #include "sphperf/cli.hpp"
 #include "sphperf/model/profile.hpp"
+#include "sphperf/report.hpp"
+#include "sphperf/topology.hpp"
+
+#include <cstdlib>
 
 #include <gtest/gtest.h>
 
@@ -106,4 +110,18 @@ TEST(Profile, InterNodeReportAddsItsClass) {
                   std::string::npos)
             << e.what();
     }
+}
+
+// Every report names the Open MPI transport settings its communication figures ran under, and
+// not mpirun's launch bookkeeping.
+TEST(ReportHeader, RecordsTheMpiTransportSettingsOnly) {
+    ASSERT_EQ(setenv("OMPI_MCA_btl_vader_eager_limit", "12345", 1), 0);
+    ASSERT_EQ(setenv("OMPI_MCA_orte_launch", "1", 1), 0);
+    sphperf::Topology topo;
+    const json h = sphperf::report_header("test", topo);
+    unsetenv("OMPI_MCA_btl_vader_eager_limit");
+    unsetenv("OMPI_MCA_orte_launch");
+    ASSERT_TRUE(h.contains("mpi_mca"));
+    EXPECT_EQ(h.at("mpi_mca").value("btl_vader_eager_limit", ""), "12345");
+    EXPECT_FALSE(h.at("mpi_mca").contains("orte_launch"));
 }
