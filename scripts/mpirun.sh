@@ -8,7 +8,8 @@
 # added when run as root. Inside a Slurm allocation (SLURM_JOB_ID) it runs srun --mpi=pmix
 # with --cpus-per-task=THREADS and core binding instead (when srun offers PMIx). mpirun's own
 # multi-line notices are silenced (--quiet) so a program's one-line error stays one line; set
-# SPHPERF_MPIRUN_VERBOSE=1 to see them.
+# SPHPERF_MPIRUN_VERBOSE=1 to see them. Open MPI's shared-memory eager limit is raised to 256 KB
+# unless OMPI_MCA_btl_vader_eager_limit is set (below).
 set -euo pipefail
 
 usage() { echo "usage: $(basename "$0") -n RANKS [-t THREADS] PROGRAM [ARGS...]" >&2; exit 2; }

@@ -1,6 +1,7 @@
 // The benchmark executables as a user runs them: tiny sizes, real reports, bad input.
 #include "run.hpp"
 
+#include <cstdlib>
 #include <map>
 
 #include <gtest/gtest.h>
@@ -204,6 +205,22 @@ TEST(ExchangeCli, OneTwoAndThreeRanks) {
     const auto bad = run(mpirun(2) + bin("exchange") + " --gaps-us 10,nan --json /tmp/x.json");
     EXPECT_EQ(bad.code, 2);
     EXPECT_EQ(bad.err_lines(), 1) << bad.err;
+}
+
+// The launcher raises Open MPI's shared-memory eager limit (sph/README.md, "Overlap") unless
+// the user set it, and the report says which limit its figures ran under.
+TEST(Launcher, SetsTheEagerLimitUnlessTheUserDid) {
+    const auto dir = scratch("launcher");
+    const auto out = dir / "e.json";
+    const char *own = std::getenv("OMPI_MCA_btl_vader_eager_limit");
+    for (const std::string limit : {std::string(), std::string("8192")}) {
+        const auto r = run((limit.empty() ? "" : "OMPI_MCA_btl_vader_eager_limit=" + limit + " ") +
+                           mpirun(2) + bin("exchange") + tiny_exchange + " --json " + out.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto j = load(out);
+        const std::string expected = !limit.empty() ? limit : own ? own : "262144";
+        EXPECT_EQ(j.at("mpi_mca").value("btl_vader_eager_limit", ""), expected);
+    }
 }
 
 TEST(MachineProfileCli, MergesTheThreeReports) {

@@ -3,9 +3,9 @@
 #include "sphperf/report.hpp"
 #include "sphperf/topology.hpp"
 
-#include <cstdlib>
-
 #include <gtest/gtest.h>
+
+#include <cstdlib>
 
 using nlohmann::json;
 
