@@ -35,9 +35,10 @@ positive "thread count" "$threads"
 # Open MPI's shared-memory transport copies a message up to its eager limit (4 KB by default)
 # through shared buffers, a larger one by a single copy the receiver makes with
 # process_vm_readv (CMA). On this VM CMA is the slow path: a 16 KB shift took 5.5 us back to
-# back and 13 us after 10 ms of compute, 1.3 and 4.5 us with this limit; the still tank's 70 KB
-# ghosts at scale 4 took 40 us to complete, 10 with it (sph/README.md, "Overlap"). The app's
-# messages fit below it. A value set by the user wins; reports record it (mpi_mca).
+# back and 12.5 us after 10 ms of compute, 1.2 and 4.1 us with this limit; the still tank's
+# 70 KB ghosts at scale 4 took 36-46 us to complete, 9-11 with a 128 KB limit (sph/README.md,
+# "Overlap"). The app's messages fit below it. A value set by the user wins; reports record it
+# (mpi_mca).
 export OMPI_MCA_btl_vader_eager_limit="${OMPI_MCA_btl_vader_eager_limit:-262144}"
 
 # Inside a Slurm allocation: srun with PMIx, THREADS cores per task, each task bound to its
