@@ -214,6 +214,25 @@ def inline_by_load(validation):
     return f"within the cores {part(within)}, time-shared {part(shared)}"
 
 
+def inline_by_exchange(validation):
+    """The per-interval inline error of each exchange apart, within the cores: the signed median
+    says which way each is off (they may cancel in the sum), the absolute one how far."""
+    errors = {}
+    for c in validation["configurations"]:
+        if c["oversubscribed"]:
+            continue
+        for x in c["comm_series"]:
+            for kind, e in x.get("shifts", {}).items():
+                errors.setdefault(kind, []).append(e["inline_error"])
+    parts = [f"{kind} {100 * statistics.median(errors[kind]):+.1f} % signed, "
+             f"{100 * statistics.median([abs(v) for v in errors[kind]]):.1f} % absolute"
+             for kind in ("migration", "ghosts", "densities") if errors.get(kind)]
+    if not parts:
+        return ""
+    return (f"By exchange (inline, within the cores, per interval, median): {'; '.join(parts)} "
+            f"(over {len(errors.get('ghosts', []))} intervals).")
+
+
 def exchange_drift(folder, model):
     """The spread of the exchange benchmarks run through the job at the 2-rank points the app's
     shifts use most: how far a profile measured once may be from any one run."""
@@ -329,6 +348,9 @@ def markdown(model, validation, args, out):
                      f"measured gap; {fresh_source(args)}): median per-interval |error| "
                      f"{100 * s['inline_comm_abs_error_per_interval']['median']:.1f} % (target 20 %); "
                      f"{inline_by_load(validation)}.")
+        by_exchange = inline_by_exchange(validation)
+        if by_exchange:
+            lines.append(by_exchange)
         drift = exchange_drift(os.path.join(args.dir, "exchange-fresh"), model)
         if drift:
             lines.append(drift)

@@ -51,6 +51,13 @@ void from_json(const json &j, RankStats &r) {
     r.probe_shift_s = j.contains("probe_shift_s") ? figure(j, "probe_shift_s") : 0.0;
     r.hidden_predict_s =
         j.contains("comm_hidden_predict_s") ? figure(j, "comm_hidden_predict_s") : 0.0;
+    if (j.contains("shifts"))
+        for (std::size_t k = 0; k < sph::shift_keys.size(); ++k) {
+            const std::string key(sph::shift_keys[k]);
+            const auto &s = j.at("shifts").at(key);
+            r.shift_comm_s[k] = figure(s, "comm_s");
+            r.shift_predict_s[k] = figure(s, "comm_predict_s");
+        }
     for (const auto &[k, v] : j.at("timers").items()) {
         r.timers[k] = v.get<double>();
         check_figure(r.timers[k], "timers/" + k);

@@ -5,6 +5,7 @@
 #include "sphperf/stats.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -57,6 +58,8 @@ json validate(const json &header, const std::vector<json> &predictions,
     // so the same mode is a ratio within sqrt(2.5) of 1.4 (0.89-2.2), halfway in log to
     // either neighbouring mode (0.56 and 3.5).
     std::vector<double> same_mode_errors, other_mode_errors;
+    // The inline error of each exchange apart (migration, ghosts, densities), per interval.
+    std::array<std::vector<double>, sph::shift_keys.size()> shift_errors;
     constexpr double probe_offset = 1.4, mode_half_step = 1.58;
     exceeded = false;
     for (const auto &m : measured) {
@@ -117,10 +120,15 @@ json validate(const json &header, const std::vector<json> &predictions,
         if (piv.size() == m.intervals.size())
             for (std::size_t k = 0; k < piv.size(); ++k) {
                 double mc = 0, ic = 0, hc = 0, pc = 0, probe = 0, probed = 0;
+                sph::ShiftTimes ms{}, is{};
                 for (const auto &r : m.intervals[k].ranks) {
                     mc += r.timer("comm_s");
                     ic += r.comm_predict_s;
                     hc += r.comm_hockney_s;
+                    for (std::size_t s = 0; s < ms.size(); ++s) {
+                        ms[s] += r.shift_comm_s[s];
+                        is[s] += r.shift_predict_s[s];
+                    }
                     if (r.probe_shift_s > 0) {
                         probe += r.probe_shift_s;
                         probed += 1;
@@ -138,6 +146,15 @@ json validate(const json &header, const std::vector<json> &predictions,
                     e["inline_error"] = rel(ic, mc);
                     inline_comm_errors.push_back(std::abs(rel(ic, mc)));
                 }
+                // Reports that split comm by exchange; a kind this run never sent is left out.
+                for (std::size_t s = 0; s < ms.size(); ++s)
+                    if (ms[s] > 0 && is[s] > 0) {
+                        const std::string key(sph::shift_keys[s]);
+                        e["shifts"][key] = {{"measured_s", ms[s]},
+                                            {"inline_s", is[s]},
+                                            {"inline_error", rel(is[s], ms[s])}};
+                        shift_errors[s].push_back(std::abs(rel(is[s], ms[s])));
+                    }
                 if (probed > 0 && m.profile_probe_shift_s > 0) {
                     const double ratio = probe / probed / m.profile_probe_shift_s;
                     e["probe_shift_s"] = probe / probed;
@@ -234,11 +251,15 @@ json validate(const json &header, const std::vector<json> &predictions,
     };
     out["configurations"] = rows;
     out["unmatched_runs"] = unmatched;
+    json by_shift;
+    for (std::size_t s = 0; s < shift_errors.size(); ++s)
+        by_shift[std::string(sph::shift_keys[s])] = summary(shift_errors[s]);
     out["summary"] = {
         {"wall_abs_error", summary(wall_errors)},
         {"inline_comm_abs_error_per_interval", summary(inline_comm_errors)},
         {"inline_comm_abs_error_per_interval_profile_mode", summary(same_mode_errors)},
         {"inline_comm_abs_error_per_interval_other_mode", summary(other_mode_errors)},
+        {"inline_comm_abs_error_per_interval_by_shift", by_shift},
         {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
         {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
         {"peak_rss_abs_error", summary(memory_errors)},
@@ -379,6 +400,18 @@ std::string validation_table(const json &v) {
     if (!sm.at("inline_comm_abs_error_per_interval").is_null())
         s += fmt("  communication, inline prediction, |error| per interval: median %.1f%%\n",
                  100 * d(sm.at("inline_comm_abs_error_per_interval").at("median")));
+    if (sm.contains("inline_comm_abs_error_per_interval_by_shift")) {
+        std::string parts;
+        for (const auto key : sph::shift_keys) {
+            const auto &e = sm.at("inline_comm_abs_error_per_interval_by_shift").value(
+                std::string(key), json(nullptr));
+            if (!e.is_null())
+                parts += (parts.empty() ? "" : ", ") + std::string(key) +
+                         fmt(" %.1f%%", 100 * d(e.at("median")));
+        }
+        if (!parts.empty())
+            s += "    by exchange, median: " + parts + "\n";
+    }
     if (sm.contains("inline_hockney_comm_abs_error_per_interval") &&
         !sm.at("inline_hockney_comm_abs_error_per_interval").is_null())
         s += fmt("  communication, inline ping-pong Hockney alone (thesis T_COMM_PREDICT), |error| "

@@ -64,14 +64,14 @@ private:
 };
 } // namespace
 
-double &Domain::last_end(int tag) {
+std::size_t Domain::shift_index(int tag) {
     switch (tag) {
     case tag_migrate:
-        return last_kind_end_s_[0];
+        return static_cast<std::size_t>(Shift::migration);
     case tag_ghost:
-        return last_kind_end_s_[1];
+        return static_cast<std::size_t>(Shift::ghosts);
     case tag_density:
-        return last_kind_end_s_[2];
+        return static_cast<std::size_t>(Shift::densities);
     default:
         throw std::logic_error("Domain: an exchange with an unknown tag");
     }
@@ -177,14 +177,16 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     one_way(west_, east_, to_west, in.from_east);
     const double end = wall_seconds();
     shift_ended(tag, end);
-    if (tag != tag_migrate)
-        tally_.halo_s += end - start;
+    const std::size_t k = shift_index(tag);
+    tally_.shift_s[k] += end - start;
     const double payload =
         static_cast<double>(sizeof(T) * std::max({to_east.size(), to_west.size(),
                                                   in.from_west.size(), in.from_east.size()}));
     tally_.hockney_s += shift_hockney_s_;
-    tally_.predicted_s +=
+    const double predicted =
         shift_cost_ ? shift_cost_(since_any, since_kind, payload) : shift_hockney_s_;
+    tally_.predicted_s += predicted;
+    tally_.shift_predict_s[k] += predicted;
     return in;
 }
 
@@ -376,7 +378,7 @@ void Domain::post_shift(const std::vector<T> &to_west, const std::vector<T> &to_
         post(true, to_east.data(), nullptr, to_east.size(), east_);
         post(true, to_west.data(), nullptr, to_west.size(), west_);
     }
-    tally_.halo_s += wall_seconds() - comm_start;
+    tally_.shift_s[shift_index(tag)] += wall_seconds() - comm_start;
     // Hockney of the payloads as the blocking shift costs them.
     auto bytes = [](const std::vector<T> &v) { return static_cast<double>(v.size() * sizeof(T)); };
     shift_hockney_s_ = sendrecv_hockney(east_, bytes(to_east), west_, bytes(in.from_west)) +
@@ -402,7 +404,8 @@ void Domain::complete_shift(double payload_bytes) {
     flight_.receives.clear();
     const double end = wall_seconds();
     shift_ended(flight_.tag, end);
-    tally_.halo_s += end - flight_.posted_s - window;
+    const std::size_t k = shift_index(flight_.tag);
+    tally_.shift_s[k] += end - flight_.posted_s - window;
     tally_.overlap_s += window;
     tally_.hockney_s += shift_hockney_s_;
     // What stays exposed, predicted. Measured whole when the exchange benchmark ran overlapped
@@ -420,6 +423,7 @@ void Domain::complete_shift(double payload_bytes) {
         exposed_cost_ ? exposed_cost_(window, payload_bytes)
                       : std::max(flight_.exposed_s, std::max(blocking, flight_.exposed_s) - window);
     tally_.predicted_s += exposed;
+    tally_.shift_predict_s[k] += exposed;
     tally_.hidden_predict_s += std::max(0.0, blocking - exposed);
 }
 

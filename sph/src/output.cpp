@@ -229,12 +229,15 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"comm_hockney_s", r.comm_hockney_s},
                               {"overlap_s", r.overlap_s},
                               {"comm_hidden_predict_s", r.hidden_predict_s},
-                              {"halo_comm_s", r.halo_comm_s},
+                              {"halo_comm_s", r.halo_comm_s()},
                               {"probe_shift_s", r.probe_shift_s},
                               {"descents", r.descents},
                               {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)
                 jr["timers"][phase_keys[k]] = r.timers[k];
+            for (std::size_t k = 0; k < shift_keys.size(); ++k)
+                jr["shifts"][shift_keys[k]] = {{"comm_s", r.shift_comm_s[k]},
+                                               {"comm_predict_s", r.shift_predict_s[k]}};
             jiv["ranks"].push_back(jr);
         }
         j["intervals"].push_back(jiv);

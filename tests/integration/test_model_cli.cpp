@@ -409,8 +409,21 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
         EXPECT_EQ(j["exchange_report"].get<std::string>(), exchange);
         double sum = 0;
         for (const auto &iv : j["intervals"])
-            for (const auto &rk : iv["ranks"])
+            for (const auto &rk : iv["ranks"]) {
                 sum += rk["comm_predict_s"].get<double>();
+                // Split by exchange: each is made once a step, so each holds a flat cost per
+                // step, and each took some time.
+                const double steps = rk["steps"].get<double>();
+                for (const char *kind : {"migration", "ghosts", "densities"}) {
+                    const auto &k = rk["shifts"][kind];
+                    EXPECT_NEAR(k["comm_predict_s"].get<double>(), steps * cost, 1e-12) << kind;
+                    EXPECT_GT(k["comm_s"].get<double>(), 0) << kind;
+                }
+                EXPECT_NEAR(rk["halo_comm_s"].get<double>(),
+                            rk["shifts"]["ghosts"]["comm_s"].get<double>() +
+                                rk["shifts"]["densities"]["comm_s"].get<double>(),
+                            1e-15);
+            }
         const double shifts = sum / cost;
         EXPECT_NEAR(shifts, std::round(shifts), 1e-6) << "not a whole number of shifts";
         EXPECT_GT(shifts, 0);
@@ -441,8 +454,15 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
         const auto measured = load(report);
         double sum = 0;
         for (const auto &iv : measured["intervals"])
-            for (const auto &rk : iv["ranks"])
+            for (const auto &rk : iv["ranks"]) {
                 sum += rk["comm_predict_s"].get<double>();
+                const double steps = rk["steps"].get<double>();
+                const auto &k = rk["shifts"];
+                EXPECT_NEAR(k["migration"]["comm_predict_s"].get<double>(), steps * 1e-3, 1e-12);
+                for (const char *kind : {"ghosts", "densities"})
+                    EXPECT_NEAR(k[kind]["comm_predict_s"].get<double>(), steps * 1e-1, 1e-12)
+                        << kind;
+            }
         EXPECT_NEAR(sum, 2 * 20 * (1e-3 + 2 * 1e-1), 1e-9);
     }
 

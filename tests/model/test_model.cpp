@@ -694,6 +694,24 @@ TEST(Validate, SplitsInlineCommunicationErrorsByLatencyMode) {
                 1e-12);
 }
 
+// Each exchange's inline error apart: a migration predicted 50 % high, ghosts 10 % low, and
+// densities the run never measured (a report without them), which count in no median.
+TEST(Validate, SplitsInlineCommunicationErrorsByExchange) {
+    auto r = measured_run(1.0);
+    auto &rank = r.intervals[0].ranks[0];
+    rank.shift_comm_s = {0.02, 0.05, 0};
+    rank.shift_predict_s = {0.03, 0.045, 0.01};
+    bool exceeded = false;
+    const auto v = validate({}, {prediction(1.0)}, {r}, {}, exceeded);
+    const auto &by = v["summary"]["inline_comm_abs_error_per_interval_by_shift"];
+    EXPECT_NEAR(by["migration"]["median"].get<double>(), 0.5, 1e-12);
+    EXPECT_NEAR(by["ghosts"]["median"].get<double>(), 0.1, 1e-12);
+    EXPECT_TRUE(by["densities"].is_null());
+    const auto &e = v["configurations"][0]["comm_series"][0]["shifts"];
+    EXPECT_NEAR(e["ghosts"]["inline_error"].get<double>(), -0.1, 1e-12);
+    EXPECT_FALSE(e.contains("densities"));
+}
+
 // A cost per interaction planted as a function of Froude time, g(tF) = 1 + 2 tF, in two rounds
 // of a half-scale run (equal work every interval): the profile recovers g at each interval's
 // Froude time (interval midpoint / sqrt(0.5)), the window's ratio of sums being exact for a

@@ -1,6 +1,8 @@
 #pragma once
 // An SPH report read into typed structures (nlohmann from_json): a missing key, a wrong type,
 // a non-finite or negative figure is a UsageError naming the file and the key.
+#include "sphperf/sph/timers.hpp"
+
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -21,6 +23,8 @@ struct RankStats {
     double halo_comm_s = 0;   // comm_s of the ghost and density exchanges (0 in older reports)
     double probe_shift_s = 0; // the latency probe at the interval's end (0: none, older reports)
     std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
+    // comm_s and comm_predict_s by exchange (sph::shift_keys); older reports: zeros
+    sph::ShiftTimes shift_comm_s{}, shift_predict_s{};
 
     double timer(const std::string &key) const;
     // Everything the rank computes locally per step (all phases but comm, wait and output).

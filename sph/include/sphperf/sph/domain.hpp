@@ -43,14 +43,14 @@ struct ExchangeCounts {
 // What this rank sent since the last take_tally(): messages, payload bytes, and, when costs
 // are attached, the predicted time of their transfer: per message by ping-pong Hockney (the
 // thesis' T_COMM_PREDICT), and per shift by the exchange benchmark (falls back to Hockney).
-// halo_s: the part of the comm phase in the ghost and density exchanges (the ones --overlap
-// makes non-blocking; migration stays blocking). With --overlap also the compute that ran while
-// transfers were in flight (`overlap_s`) and, when costs are attached, the predicted part of those
-// transfers it hid (`hidden_predict_s`).
+// shift_s: the comm phase split by exchange (Shift), and shift_predict_s the predicted part of
+// each (they sum to predicted_s). With --overlap also the compute that ran while transfers were in
+// flight (`overlap_s`) and, when costs are attached, the predicted part of those transfers it hid
+// (`hidden_predict_s`).
 struct CommTally {
     double messages = 0, bytes = 0, hockney_s = 0, predicted_s = 0;
     double overlap_s = 0, hidden_predict_s = 0;
-    double halo_s = 0; // the transfers of the ghost and density exchanges (part of comm)
+    ShiftTimes shift_s{}, shift_predict_s{};
 };
 
 // Ghosts on their way (--overlap): how many will arrive from each side.
@@ -184,8 +184,9 @@ private:
     // densities), ended (wall clock): what a shift costs depends on both
     // (model::ExchangeModel::app_shift_seconds).
     double last_any_end_s_ = 0;
-    std::array<double, 3> last_kind_end_s_{};
-    double &last_end(int tag);
+    ShiftTimes last_kind_end_s_{};
+    double &last_end(int tag) { return last_kind_end_s_[shift_index(tag)]; }
+    static std::size_t shift_index(int tag);
     // The gaps since both, at `now`, as the shift cost takes them; 0 before the first.
     std::pair<double, double> gaps(int tag, double now);
     // Records the end of a shift of this kind.

@@ -35,11 +35,18 @@ struct RankInterval {
     double rss_bytes = 0;        // resident set size at the interval's end (soak: stays flat)
     double overlap_s = 0;        // --overlap: compute run while ghost transfers were in flight
     double hidden_predict_s = 0; // ... and the predicted transfer time it hid (T_overlap)
-    double halo_comm_s = 0;      // comm_s of the ghost and density exchanges (no migration)
     double probe_shift_s = 0;    // the latency probe at the interval's end (Domain), 0: none
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
+    ShiftTimes shift_comm_s{};    // comm_s split by exchange (migration, ghosts, densities)
+    ShiftTimes shift_predict_s{}; // comm_predict_s split the same way
+    // comm_s of the ghost and density exchanges (the ones --overlap overlaps)
+    double halo_comm_s() const {
+        return shift_comm_s[static_cast<std::size_t>(Shift::ghosts)] +
+               shift_comm_s[static_cast<std::size_t>(Shift::densities)];
+    }
 
-    static constexpr std::size_t fields = 23 + static_cast<std::size_t>(Phase::count);
+    static constexpr std::size_t fields = 22 + static_cast<std::size_t>(Phase::count) +
+                                          2 * static_cast<std::size_t>(Shift::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

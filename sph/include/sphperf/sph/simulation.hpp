@@ -678,7 +678,10 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         acc_.comm_hockney_s += tally.hockney_s;
         acc_.overlap_s += tally.overlap_s;
         acc_.hidden_predict_s += tally.hidden_predict_s;
-        acc_.halo_comm_s += tally.halo_s;
+        for (std::size_t k = 0; k < tally.shift_s.size(); ++k) {
+            acc_.shift_comm_s[k] += tally.shift_s[k];
+            acc_.shift_predict_s[k] += tally.shift_predict_s[k];
+        }
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)
             acc_.timers[k] += step_timers_.values()[k];
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)

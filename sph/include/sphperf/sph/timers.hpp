@@ -30,6 +30,13 @@ inline constexpr std::array<std::string_view, static_cast<std::size_t>(Phase::co
     "pairs_s",    "grid_s",      "comp_s",   "comm_s",   "wait_s",     "pack_s",
     "boundary_s", "integrate_s", "output_s", "idsort_s", "rebalance_s"};
 
+// The comm phase by exchange, in the order of a step: the transfers of each are predicted and
+// validated apart, since what a shift costs on one node depends on what ran before it.
+enum class Shift : std::size_t { migration, ghosts, densities, count };
+inline constexpr std::array<std::string_view, static_cast<std::size_t>(Shift::count)> shift_keys{
+    "migration", "ghosts", "densities"};
+using ShiftTimes = std::array<double, static_cast<std::size_t>(Shift::count)>;
+
 class PhaseTimers {
 public:
     void add(Phase p, double seconds) { acc_[static_cast<std::size_t>(p)] += seconds; }
