@@ -403,8 +403,8 @@ std::string validation_table(const json &v) {
     if (sm.contains("inline_comm_abs_error_per_interval_by_shift")) {
         std::string parts;
         for (const auto key : sph::shift_keys) {
-            const auto &e = sm.at("inline_comm_abs_error_per_interval_by_shift").value(
-                std::string(key), json(nullptr));
+            const auto &e = sm.at("inline_comm_abs_error_per_interval_by_shift")
+                                .value(std::string(key), json(nullptr));
             if (!e.is_null())
                 parts += (parts.empty() ? "" : ", ") + std::string(key) +
                          fmt(" %.1f%%", 100 * d(e.at("median")));

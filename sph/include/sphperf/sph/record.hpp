@@ -45,8 +45,8 @@ struct RankInterval {
                shift_comm_s[static_cast<std::size_t>(Shift::densities)];
     }
 
-    static constexpr std::size_t fields = 22 + static_cast<std::size_t>(Phase::count) +
-                                          2 * static_cast<std::size_t>(Shift::count);
+    static constexpr std::size_t fields =
+        22 + static_cast<std::size_t>(Phase::count) + 2 * static_cast<std::size_t>(Shift::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };
