@@ -213,7 +213,7 @@ TEST(Launcher, SetsTheEagerLimitUnlessTheUserDid) {
     const auto dir = scratch("launcher");
     const auto out = dir / "e.json";
     const char *own = std::getenv("OMPI_MCA_btl_vader_eager_limit");
-    for (const std::string limit : {std::string(), std::string("8192")}) {
+    for (const std::string &limit : {std::string(), std::string("8192")}) {
         const auto r = run((limit.empty() ? "" : "OMPI_MCA_btl_vader_eager_limit=" + limit + " ") +
                            mpirun(2) + bin("exchange") + tiny_exchange + " --json " + out.string());
         ASSERT_EQ(r.code, 0) << r.err;
