@@ -10,6 +10,10 @@
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build="${SPHPERF_BUILD_DIR:-$root/build}"
+# Each stage's header says how far into the job it starts (the README's time budget).
+: "${SPHPERF_JOB_START:=$(date +%s)}"
+export SPHPERF_JOB_START
+stage() { echo "== $* ($(($(date +%s) - SPHPERF_JOB_START)) s into the job)"; }
 
 usage() {
     sed -n '2,8p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
@@ -31,7 +35,7 @@ while [ $# -gt 0 ]; do
 done
 
 if [ "$build_first" -eq 1 ]; then
-    echo "== building (log: ${TMPDIR:-/tmp}/sphperf-build.log)"
+    stage "building (log: ${TMPDIR:-/tmp}/sphperf-build.log)"
     bash "$root/scripts/build.sh" >"${TMPDIR:-/tmp}/sphperf-build.log" 2>&1 || {
         echo "characterise-node.sh: build failed; see ${TMPDIR:-/tmp}/sphperf-build.log" >&2; exit 1; }
 fi
@@ -54,20 +58,20 @@ if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
     exchange_args=(--gaps-us 0,1000,10000 --payload-bytes 64,4096 --seconds-per-point 0.05)
 fi
 
-echo "== STREAM"
+stage "STREAM"
 "$build/bin/stream" "${stream_args[@]}" --json "$work/stream.json"
-echo "== DGEMM"
+stage "DGEMM"
 "$build/bin/dgemm" "${dgemm_args[@]}" --json "$work/dgemm.json"
 
 suggested=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1])).get("suggested_coretype") or "")' "$work/dgemm.json")
 for ct in $(echo "$suggested,$coretypes" | tr ',' ' '); do
     [ -f "$work/dgemm_$ct.json" ] && continue
-    echo "== DGEMM with OPENBLAS_CORETYPE=$ct"
+    stage "DGEMM with OPENBLAS_CORETYPE=$ct"
     OPENBLAS_CORETYPE="$ct" "$build/bin/dgemm" "${dgemm_args[@]}" --no-probe --threads "$(nproc)" \
         --json "$work/dgemm_$ct.json"
 done
 
-echo "== ping-pong on $ranks ranks"
+stage "ping-pong on $ranks ranks"
 bash "$root/scripts/mpirun.sh" -n "$ranks" "$build/bin/pingpong" "${pingpong_args[@]}" \
     --json "$work/pingpong.json"
 
@@ -80,7 +84,7 @@ for n in $(printf '%s\n' 2 "$cores" $((cores + cores / 2)) $((2 * cores)) | sort
     # shift leaves exposed behind compute. Above them a rank's turn decides, not the overlap.
     overlapped=()
     [ "$n" -le "$cores" ] && overlapped=(--overlapped)
-    echo "== halo exchange on $n ranks${overlapped:+ (blocking and overlapped)}"
+    stage "halo exchange on $n ranks${overlapped:+ (blocking and overlapped)}"
     bash "$root/scripts/mpirun.sh" -n "$n" "$build/bin/exchange" "${exchange_args[@]}" \
         "${overlapped[@]}" --quiet --json "$work/exchange_r$n.json"
 done
@@ -99,3 +103,4 @@ fi
 bash "$root/scripts/model-node.sh" $([ "$quick" -eq 1 ] && echo --quick) --machine "$out/machine.json" \
     --out "$out"
 echo "profile: $out/machine.json"
+stage "main job done"

@@ -7,6 +7,10 @@
 # DIR/exchange-fresh/. Nothing else should run meanwhile: the figures are timings.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+# Each stage's header says how far into the job it starts (the README's time budget).
+: "${SPHPERF_JOB_START:=$(date +%s)}"
+export SPHPERF_JOB_START
+stage() { echo "== $* ($(($(date +%s) - SPHPERF_JOB_START)) s into the job)"; }
 build="${SPHPERF_BUILD_DIR:-$root/build}"
 usage() { sed -n '2,7p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
 machine="" out="" quick=0
@@ -128,9 +132,9 @@ validate_run() { # validate_run RANKS[xTHREADS] NAME ARGS...
     val_s=$((val_s + SECONDS - t0))
 }
 
-echo "== calibration round a: half-scale runs, 2 ranks (and 3 for time-sharing), all three grids"
+stage "calibration round a: half-scale runs, 2 ranks (and 3 for time-sharing), all three grids"
 calibrate_round a
-echo "== validation runs (configurations calibration never ran), first half"
+stage "validation runs (configurations calibration never ran), first half"
 for r in 1 2 3 4; do
     validate_run "$r" "val_dambreak_s1_table_r$r" --setup dambreak --grid table --steps "$v_steps" \
         --interval "$interval"
@@ -144,9 +148,9 @@ for r in 2 4; do
     validate_run "$r" "val_dambreak_s1_table_balanced_r$r" --setup dambreak --grid table \
         --steps "$v_steps" --interval "$interval" --decomposition balanced
 done
-echo "== calibration round b"
+stage "calibration round b"
 calibrate_round b
-echo "== validation runs, second half"
+stage "validation runs, second half"
 validate_run 2 val_dambreak_s2_table_r2 --setup dambreak --grid table --scale 2 \
     --steps "$v2_steps" --interval "$interval"
 validate_run 4 val_dambreak_s2_table_r4 --setup dambreak --grid table --scale 2 \
@@ -179,11 +183,11 @@ model_and_validate() {
     local dir=$1 rule=$2 profile=$3
     mkdir -p "$dir"
     rm -f "$dir/refused.txt"
-    echo "== calibration ($rule, time profile $profile)"
+    stage "calibration ($rule, time profile $profile)"
     "$build/bin/sphmodel" calibrate --machine "$machine" --runs "$runs"/cal_*.json \
         --term-selection "$rule" --time-profile "$profile" --out "$dir/model.json"
 
-    echo "== predictions ($rule)"
+    stage "predictions ($rule)"
     predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
         local name=$1 threads=1
         shift
@@ -218,7 +222,7 @@ model_and_validate() {
     predict dambreak_s1_sorted_t2 --threads 2 --setup dambreak --grid sorted --scale 1 --ranks 1 \
         --steps "$v_steps"
 
-    echo "== validation ($rule)"
+    stage "validation ($rule)"
     "$build/bin/sphmodel" validate --prediction "$dir"/prediction_*.json \
         --measured "$runs"/val_*.json --out "$dir/validation.json"
 }
