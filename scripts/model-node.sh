@@ -46,10 +46,11 @@ sph() { # sph RANKS[xTHREADS] NAME ARGS...: one measured run (1 thread per rank 
 # after 10 ms of compute drifts 2-4x within a minute (model/README.md, session 20), more than
 # any profile measured once can follow. Only the gaps and payloads the app's shifts fall between.
 if [ "$quick" -eq 1 ]; then
-    fresh_args=(--gaps-us 0,10000 --payload-bytes 64,16384 --seconds-per-point 0.02 --min-rounds 5)
+    fresh_args=(--gaps-us 0,10000 --payload-bytes 64,16384 --seconds-per-point 0.02 --min-rounds 5
+        --following)
 else
     fresh_args=(--gaps-us 0,1000,3000,10000,30000 --payload-bytes 64,1024,16384
-        --seconds-per-point 0.2 --min-rounds 10)
+        --seconds-per-point 0.2 --min-rounds 10 --following)
 fi
 fresh_s=0
 fresh_exchange() { # fresh_exchange RANKS NAME [--overlapped]: writes $fresh/NAME.json

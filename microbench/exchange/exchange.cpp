@@ -5,9 +5,12 @@
 // costs several times the same shift in a tight loop, with a heavy tail, and above the core
 // count the ranks take turns. So this measures the shift's cost per (ranks, gap, payload) as
 // the app meets it, mean beside median (the model predicts sums, so it uses the mean), and the
-// throughput lost to time-sharing. With --overlapped also the shift of sph --overlap (counts on
-// the handshake, payloads posted, the work behind them, receives completed): only posting and
-// completion are timed, the part no overlap hides, by the compute behind the transfers.
+// throughput lost to time-sharing. With --following also a shift that comes right after another
+// one (the app's ghost shift, after its migration): on some hosts the shift before it warms
+// the path and it costs far less than the same shift after compute alone. With --overlapped
+// also the shift of sph --overlap (counts on the handshake, payloads posted, the work behind
+// them, receives completed): only posting and completion are timed, the part no overlap hides,
+// by the compute behind the transfers.
 #include "mpi_program.hpp"
 #include "sphperf/cli.hpp"
 #include "sphperf/report.hpp"
@@ -22,6 +25,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numeric>
+#include <string>
 #include <vector>
 
 namespace {
@@ -31,6 +35,21 @@ using namespace sphperf;
 constexpr int tag_shift = 7;
 constexpr int warmup_rounds = 3;
 constexpr double calibration_s = 0.05; // work-rate calibration on rank 0 alone
+constexpr int lead_bytes = 64;         // the shift before a following one: a few migrants
+
+// What one point measures: the shift after the work; the shift after the work and another
+// shift (the app's ghosts after its migration); the exposed part of an overlapped shift.
+enum class Mode { blocking, following, overlapped };
+const char *mode_name(Mode m) {
+    switch (m) {
+    case Mode::following:
+        return "following";
+    case Mode::overlapped:
+        return "overlapped";
+    default:
+        return "blocking";
+    }
+}
 
 struct Config {
     // Up to 30 ms: the table grid's dam break at scale 2 computes 31 ms per step (session 19).
@@ -42,6 +61,7 @@ struct Config {
     std::int64_t work_bytes = std::int64_t{2} << 20;
     std::optional<std::filesystem::path> json;
     bool quiet = false;
+    bool following = false;
     bool overlapped = false;
 };
 
@@ -71,6 +91,12 @@ Config parse(int argc, char **argv) {
     app.add_option("--work-bytes", cfg.work_bytes,
                    "Buffer the work streams through per rank (cache footprint of the compute)")
         ->check(CLI::Range(std::int64_t{4096}, std::int64_t{1} << 32));
+    app.add_flag("--following", cfg.following,
+                 "Also measure a shift that follows another: the work, a " +
+                     std::to_string(lead_bytes) +
+                     "-byte shift (the app's migration, untimed), then the timed shift (its "
+                     "points carry \"follows_shift\": true; their gap runs from the previous "
+                     "timed shift, so it holds the work and the shift before)");
     app.add_flag("--overlapped", cfg.overlapped,
                  "Also measure the overlapped exchange of sph --overlap: counts on the "
                  "handshake, payloads posted non-blocking, the work behind them, then the "
@@ -211,7 +237,7 @@ private:
 };
 
 struct Point {
-    bool overlapped = false;
+    Mode mode = Mode::blocking;
     double gap_work_us = 0, payload_bytes = 0, rounds = 0;
     Summary shift; // comm per shift, over all ranks and rounds
     double shift_p90_s = 0;
@@ -224,7 +250,7 @@ struct Point {
 };
 
 Point measure(const Config &cfg, const Chain &chain, Work &work, double elements_per_us,
-              double gap_us, int bytes, int size, int cores, bool overlapped) {
+              double gap_us, int bytes, int size, int cores, Mode mode) {
     const auto elements = static_cast<std::int64_t>(std::llround(gap_us * elements_per_us));
     // Estimated round length, assuming the ranks share the cores fairly.
     const double round_guess_s =
@@ -232,15 +258,23 @@ Point measure(const Config &cfg, const Chain &chain, Work &work, double elements
     const int rounds = std::clamp(static_cast<int>(cfg.seconds_per_point / round_guess_s),
                                   cfg.min_rounds, cfg.max_rounds);
     std::vector<char> out(static_cast<std::size_t>(bytes), 'x'), in(out.size());
+    std::vector<char> lead_out(lead_bytes, 'y'), lead_in(lead_bytes);
+    const bool overlapped = mode == Mode::overlapped;
     OverlappedShift ovl;
-    // One round: the work, then the shift; overlapped, the work runs behind the transfers.
+    // One round: the work, then the shift (following: another shift between them, as the
+    // app's migration before its ghosts); overlapped, the work runs behind the transfers.
     auto round = [&] {
         if (overlapped)
             return ovl.run(chain, out, in, [&] { work.run(elements); });
         const double t0 = wall_seconds();
         work.run(elements);
+        const double lead_s = mode == Mode::following ? [&] {
+            const ShiftTimes l = shift(chain, lead_out, lead_in);
+            return l.wait_s + l.comm_s;
+        }()
+                                                      : 0.0;
         ShiftTimes s = shift(chain, out, in);
-        s.behind_s = wall_seconds() - t0 - s.wait_s - s.comm_s;
+        s.behind_s = wall_seconds() - t0 - lead_s - s.wait_s - s.comm_s;
         return s;
     };
     quiet_barrier(MPI_COMM_WORLD);
@@ -272,7 +306,7 @@ Point measure(const Config &cfg, const Chain &chain, Work &work, double elements
     double slowest = 0;
     MPI_Reduce(&elapsed, &slowest, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
     Point p;
-    p.overlapped = overlapped;
+    p.mode = mode;
     p.gap_work_us = gap_us;
     p.payload_bytes = bytes;
     p.rounds = rounds;
@@ -322,7 +356,8 @@ nlohmann::json point_json(const Point &p, int size, int cores) {
     const double share = std::max(1.0, std::ceil(static_cast<double>(size) / cores));
     const double ideal = p.gap_work_us * 1e-6 * share;
     return {
-        {"overlapped", p.overlapped},
+        {"overlapped", p.mode == Mode::overlapped},
+        {"follows_shift", p.mode == Mode::following},
         {"gap_work_us", p.gap_work_us},
         {"payload_bytes", p.payload_bytes},
         {"rounds", p.rounds},
@@ -355,16 +390,17 @@ int run(int argc, char **argv, int rank, int size) {
     Work work(cfg.work_bytes);
     const double rate = calibrate(work, rank);
     nlohmann::json points = nlohmann::json::array();
-    std::vector<bool> modes{false};
+    std::vector<Mode> modes{Mode::blocking};
+    if (cfg.following)
+        modes.push_back(Mode::following);
     if (cfg.overlapped)
-        modes.push_back(true);
+        modes.push_back(Mode::overlapped);
     const std::size_t total = modes.size() * cfg.gaps_us.size() * cfg.payload_bytes.size();
     std::size_t done = 0;
-    for (const bool overlapped : modes)
+    for (const Mode mode : modes)
         for (const int bytes : cfg.payload_bytes)
             for (const double gap : cfg.gaps_us) {
-                const Point p =
-                    measure(cfg, chain, work, rate, gap, bytes, size, cores, overlapped);
+                const Point p = measure(cfg, chain, work, rate, gap, bytes, size, cores, mode);
                 ++done;
                 if (rank == 0) {
                     points.push_back(point_json(p, size, cores));
@@ -372,8 +408,8 @@ int run(int argc, char **argv, int rank, int size) {
                         std::fprintf(stderr,
                                      "exchange: %zu/%zu  %d ranks, %s, gap %6.0f us, %6d B: "
                                      "shift mean %.2f us, median %.2f us\n",
-                                     done, total, size, overlapped ? "overlapped" : "blocking", gap,
-                                     bytes, p.shift.avg * 1e6, p.shift.median * 1e6);
+                                     done, total, size, mode_name(mode), gap, bytes,
+                                     p.shift.avg * 1e6, p.shift.median * 1e6);
                 }
             }
     double sink = work.sink(), total_sink = 0;
@@ -386,6 +422,7 @@ int run(int argc, char **argv, int rank, int size) {
                             {"min_rounds", cfg.min_rounds},
                             {"max_rounds", cfg.max_rounds},
                             {"work_bytes", cfg.work_bytes},
+                            {"following", cfg.following},
                             {"overlapped", cfg.overlapped}};
         report["ranks"] = size;
         report["cores"] = cores;
@@ -395,9 +432,13 @@ int run(int argc, char **argv, int rank, int size) {
         report["points"] = points;
         const std::size_t per_mode = cfg.gaps_us.size() * cfg.payload_bytes.size();
         for (std::size_t m = 0; m < modes.size(); ++m) {
+            const std::string what = modes[m] == Mode::overlapped ? "overlapped (exposed part)"
+                                     : modes[m] == Mode::following
+                                         ? "following a " + std::to_string(lead_bytes) + " B shift"
+                                         : "blocking";
             std::printf("exchange on %d ranks (%d cores), %s: mean / median shift cost, us\n", size,
-                        cores, modes[m] ? "overlapped (exposed part)" : "blocking");
-            std::printf("%10s", modes[m] ? "behind us" : "gap us");
+                        cores, what.c_str());
+            std::printf("%10s", modes[m] == Mode::overlapped ? "behind us" : "gap us");
             for (const int b : cfg.payload_bytes)
                 std::printf("  %17d B", b);
             std::printf("\n");

@@ -136,20 +136,25 @@ ExchangeModel ExchangeModel::from_profile(const nlohmann::json &machine) {
             x.mean_s =
                 number(p.value("shift", nlohmann::json()), "mean_s", where + "/points/shift");
             x.median_s = p["shift"].value("median_s", x.mean_s);
-            x.overlapped = p.value("overlapped", false);
+            const bool overlapped = p.value("overlapped", false);
+            const bool follows = p.value("follows_shift", false);
+            if (overlapped && follows)
+                throw UsageError(where + " has a point both overlapped and following a shift");
+            x.mode = overlapped ? ShiftMode::overlapped
+                     : follows  ? ShiftMode::following
+                                : ShiftMode::blocking;
             if (p.contains("round_overhead") && p["round_overhead"].is_number())
                 x.overhead = p["round_overhead"].get<double>();
             if (x.gap_s < 0 || x.bytes <= 0 || x.mean_s < 0)
                 throw UsageError(where + " has a point with a negative gap or cost, or no payload");
             s.points.push_back(x);
         }
-        if (std::all_of(s.points.begin(), s.points.end(),
-                        [](const ExchangePoint &p) { return p.overlapped; }))
+        if (!s.has(ShiftMode::blocking))
             throw UsageError(where + " at " + std::to_string(s.ranks) +
-                             " ranks has overlapped points only (expected blocking ones too)");
+                             " ranks has overlapped or following points only (expected "
+                             "blocking ones too)");
         std::sort(s.points.begin(), s.points.end(), [](const auto &a, const auto &b) {
-            return std::tie(a.overlapped, a.bytes, a.gap_s) <
-                   std::tie(b.overlapped, b.bytes, b.gap_s);
+            return std::tie(a.mode, a.bytes, a.gap_s) < std::tie(b.mode, b.bytes, b.gap_s);
         });
         m.sets_.push_back(std::move(s));
     }
@@ -175,14 +180,27 @@ const ExchangeSet &ExchangeModel::set_for(int ranks, int threads, int cores) con
 
 namespace {
 constexpr double smallest_gap_s = 1e-7; // gaps below a tenth of a microsecond are the same
+// A shift this close after another, relative to the step, follows it (app_shift_seconds).
+constexpr double follows_within = 0.1;
+
+const char *mode_name(ShiftMode mode) {
+    switch (mode) {
+    case ShiftMode::following:
+        return "following";
+    case ShiftMode::overlapped:
+        return "overlapped";
+    default:
+        return "blocking";
+    }
+}
 
 // y(gap) of one payload and kind, interpolated in log(gap).
 template <class Get>
-double along_gap(const std::vector<ExchangePoint> &pts, double bytes, bool overlapped, double gap_s,
+double along_gap(const std::vector<ExchangePoint> &pts, double bytes, ShiftMode mode, double gap_s,
                  Get get) {
     std::vector<std::pair<double, double>> xy;
     for (const auto &p : pts)
-        if (p.bytes == bytes && p.overlapped == overlapped)
+        if (p.bytes == bytes && p.mode == mode)
             xy.emplace_back(std::log(std::max(p.gap_s, smallest_gap_s)), get(p));
     std::sort(xy.begin(), xy.end());
     return interpolate(xy, std::log(std::max(gap_s, smallest_gap_s)));
@@ -190,16 +208,15 @@ double along_gap(const std::vector<ExchangePoint> &pts, double bytes, bool overl
 } // namespace
 
 double ExchangeModel::shift_seconds(const ExchangeSet &set, double gap_s, double bytes,
-                                    bool overlapped) {
+                                    ShiftMode mode) {
     std::vector<double> sizes;
     for (const auto &p : set.points)
-        if (p.overlapped == overlapped && (sizes.empty() || sizes.back() != p.bytes))
+        if (p.mode == mode && (sizes.empty() || sizes.back() != p.bytes))
             sizes.push_back(p.bytes);
     if (sizes.empty())
-        throw std::logic_error(std::string("exchange set without ") +
-                               (overlapped ? "overlapped" : "blocking") + " points");
+        throw std::logic_error(std::string("exchange set without ") + mode_name(mode) + " points");
     auto at = [&](double b) {
-        return along_gap(set.points, b, overlapped, gap_s,
+        return along_gap(set.points, b, mode, gap_s,
                          [](const ExchangePoint &p) { return p.mean_s; });
     };
     if (sizes.size() == 1 || bytes <= sizes.front())
@@ -216,7 +233,12 @@ double ExchangeModel::shift_seconds(const ExchangeSet &set, double gap_s, double
 
 double ExchangeModel::app_shift_seconds(const ExchangeSet &set, double since_any_s,
                                         double since_kind_s, double bytes) {
-    return shift_seconds(set, set.load() > 1 ? since_any_s : since_kind_s, bytes);
+    if (set.load() > 1)
+        return shift_seconds(set, since_any_s, bytes);
+    const bool follows = since_any_s < follows_within * since_kind_s;
+    return shift_seconds(set, since_kind_s, bytes,
+                         follows && set.has(ShiftMode::following) ? ShiftMode::following
+                                                                  : ShiftMode::blocking);
 }
 
 double ExchangeModel::round_overhead(const ExchangeSet &set, double gap_s) {
@@ -225,7 +247,7 @@ double ExchangeModel::round_overhead(const ExchangeSet &set, double gap_s) {
     // Every payload's points together: the overhead hardly depends on the payload.
     std::vector<std::pair<double, double>> xy;
     for (const auto &p : set.points)
-        if (p.overhead > 0 && !p.overlapped)
+        if (p.overhead > 0 && p.mode == ShiftMode::blocking)
             xy.emplace_back(std::log(std::max(p.gap_s, smallest_gap_s)), p.overhead);
     if (xy.empty())
         return 1.0;

@@ -86,11 +86,20 @@ int run(int argc, char **argv) {
                     name.c_str(), c["alpha_s_max"].get<double>() * 1e6,
                     1e-9 / c["beta_s_per_byte_max"].get<double>(), c["pairs"].get<int>());
     const auto exchange = model::ExchangeModel::from_profile(profile);
-    for (const auto &set : exchange.sets())
+    for (const auto &set : exchange.sets()) {
         std::printf("  halo exchange, %d ranks: 1 KiB shift after 1 / 10 ms of compute %.1f / "
-                    "%.1f us (mean)\n",
+                    "%.1f us (mean)",
                     set.ranks, model::ExchangeModel::shift_seconds(set, 1e-3, 1024) * 1e6,
                     model::ExchangeModel::shift_seconds(set, 1e-2, 1024) * 1e6);
+        if (set.has(model::ShiftMode::following))
+            std::printf(
+                ", right after another shift %.1f / %.1f us",
+                model::ExchangeModel::shift_seconds(set, 1e-3, 1024, model::ShiftMode::following) *
+                    1e6,
+                model::ExchangeModel::shift_seconds(set, 1e-2, 1024, model::ShiftMode::following) *
+                    1e6);
+        std::printf("\n");
+    }
     std::printf("written %s\n", cfg.out.string().c_str());
     return 0;
 }

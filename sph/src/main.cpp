@@ -287,10 +287,11 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
         domain.attach_shift_cost([set](double since_any_s, double since_kind_s, double bytes) {
             return model::ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes);
         });
-        if (set->has_overlapped()) {
+        if (set->has(model::ShiftMode::overlapped)) {
             overlap_measured = true;
             domain.attach_exposed_cost([set](double behind_s, double bytes) {
-                return model::ExchangeModel::shift_seconds(*set, behind_s, bytes, true);
+                return model::ExchangeModel::shift_seconds(*set, behind_s, bytes,
+                                                           model::ShiftMode::overlapped);
             });
         }
         // Above the cores a back-to-back shift waits for descheduled neighbours: no mode shows.

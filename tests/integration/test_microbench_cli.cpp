@@ -174,15 +174,18 @@ const std::string tiny_exchange =
 
 // The app's shift as a benchmark: every (payload, gap) point, mean beside median, at 2 and 3
 // ranks (3 is above this machine's cores: the round overhead is reported); 1 rank is refused.
-// At 3 ranks also overlapped (sph --overlap): a second set of points, the work behind the
-// transfers as their gap.
+// At 2 ranks also following (a shift right after another, as the app's ghosts after its
+// migration), at 3 overlapped (sph --overlap, the work behind the transfers as their gap): a
+// second set of points each.
 TEST(ExchangeCli, OneTwoAndThreeRanks) {
     for (int ranks : {1, 2, 3}) {
         const auto dir = scratch("exchange" + std::to_string(ranks));
         const auto out = dir / "e.json";
         const bool overlapped = ranks == 3;
+        const bool following = ranks == 2;
         const auto r = run(mpirun(ranks) + bin("exchange") + tiny_exchange +
-                           (overlapped ? " --overlapped" : "") + " --json " + out.string());
+                           (overlapped ? " --overlapped" : "") + (following ? " --following" : "") +
+                           " --json " + out.string());
         if (ranks == 1) {
             EXPECT_EQ(r.code, 2);
             EXPECT_NE(r.err.find("at least 2 MPI ranks"), std::string::npos) << r.err;
@@ -193,10 +196,20 @@ TEST(ExchangeCli, OneTwoAndThreeRanks) {
         const auto j = load(out);
         expect_envelope(j, "exchange");
         EXPECT_EQ(j["ranks"].get<int>(), ranks);
-        ASSERT_EQ(j["points"].size(), overlapped ? 8u : 4u);
+        ASSERT_EQ(j["points"].size(), 8u);
         EXPECT_EQ(j["config"]["overlapped"].get<bool>(), overlapped);
-        for (std::size_t i = 0; i < j["points"].size(); ++i)
-            EXPECT_EQ(j["points"][i]["overlapped"].get<bool>(), i >= 4) << i;
+        EXPECT_EQ(j["config"]["following"].get<bool>(), following);
+        for (std::size_t i = 0; i < j["points"].size(); ++i) {
+            EXPECT_EQ(j["points"][i]["overlapped"].get<bool>(), overlapped && i >= 4) << i;
+            EXPECT_EQ(j["points"][i]["follows_shift"].get<bool>(), following && i >= 4) << i;
+        }
+        if (following) {
+            EXPECT_NE(r.out.find("following a 64 B shift"), std::string::npos) << r.out;
+            // The gap of a following point runs from the last timed shift: the work and the
+            // shift before, so with 200 us of work it is longer than that work alone.
+            EXPECT_EQ(j["points"][5]["gap_work_us"].get<double>(), 200);
+            EXPECT_GT(j["points"][5]["gap_s_mean"].get<double>(), 100e-6);
+        }
         if (overlapped) {
             // The overlapped point with 200 us of work behind its transfers says so.
             EXPECT_EQ(j["points"][5]["gap_work_us"].get<double>(), 200);

@@ -590,6 +590,7 @@ TEST(Comm, ExchangeTableInterpolatesAndMatchesTheLoad) {
 // overlapped points says so.
 TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
     using sphperf::model::ExchangeModel;
+    using sphperf::model::ShiftMode;
     auto blocking = [](double gap, double bytes) {
         return 2e-6 + 1e-6 * gap / 1e-3 + 1e-9 * bytes;
     };
@@ -611,23 +612,24 @@ TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
     const auto m = ExchangeModel::from_profile(
         {{"exchange", {{{"ranks", 2}, {"cores", 2}, {"points", pts}}}}});
     const auto &set = m.set_for(2, 1, 2);
-    EXPECT_TRUE(set.has_overlapped());
+    EXPECT_TRUE(set.has(ShiftMode::overlapped));
     // Both tables are linear in the gap and the payload between points; log-linear
     // interpolation in the gap is exact at the points and the payload is linear.
     for (double gap : {1e-3, 1e-2})
         for (double bytes : {64.0, 1000.0, 16384.0}) {
             EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes), blocking(gap, bytes), 1e-12);
-            EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes, true), exposed(gap, bytes),
-                        1e-12);
+            EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes, ShiftMode::overlapped),
+                        exposed(gap, bytes), 1e-12);
         }
     const auto ranks3 = ExchangeModel::from_profile(
         {{"exchange", {{{"ranks", 3}, {"cores", 2}, {"points", pts}}}}});
     EXPECT_NEAR(ExchangeModel::round_overhead(ranks3.sets().front(), 3e-3), 1.5, 1e-12);
     const auto plain = ExchangeModel::from_profile(
         {{"exchange", {{{"ranks", 2}, {"cores", 2}, {"points", without}}}}});
-    EXPECT_FALSE(plain.sets().front().has_overlapped());
-    EXPECT_THROW(ExchangeModel::shift_seconds(plain.sets().front(), 1e-3, 64, true),
-                 std::logic_error);
+    EXPECT_FALSE(plain.sets().front().has(ShiftMode::overlapped));
+    EXPECT_THROW(
+        ExchangeModel::shift_seconds(plain.sets().front(), 1e-3, 64, ShiftMode::overlapped),
+        std::logic_error);
     // A set the blocking shifts cannot be costed from is refused when read, by name.
     auto only = pts;
     only.erase(only.begin() + 4, only.end());
@@ -636,7 +638,79 @@ TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
             {{"exchange", {{{"ranks", 2}, {"cores", 2}, {"points", only}}}}});
         ADD_FAILURE() << "a set of overlapped points only was accepted";
     } catch (const sphperf::UsageError &e) {
-        EXPECT_NE(std::string(e.what()).find("overlapped points only"), std::string::npos)
+        EXPECT_NE(std::string(e.what()).find("overlapped or following points only"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+// Following points (exchange --following) cost a shift that comes right after another one, as
+// the app's ghosts after its migration: within the cores a shift within a tenth of its step of
+// the last one reads them at the gap since its own kind; anything else, or a set without them,
+// the blocking table; above the cores the gap since any shift decides, blocking.
+TEST(Comm, FollowingExchangePointsCostAShiftRightAfterAnother) {
+    using sphperf::model::ExchangeModel;
+    using sphperf::model::ShiftMode;
+    auto blocking = [](double gap, double bytes) {
+        return 2e-6 + 1e-6 * gap / 1e-3 + 1e-9 * bytes;
+    };
+    auto following = [](double gap, double bytes) {
+        return 1e-6 + 3e-7 * gap / 1e-3 + 5e-10 * bytes;
+    };
+    auto points = [&](bool with_following) {
+        nlohmann::json pts = nlohmann::json::array();
+        for (bool f : {true, false})
+            for (double bytes : {64.0, 16384.0})
+                for (double gap : {1e-3, 1e-2})
+                    if (!f || with_following)
+                        pts.push_back(
+                            {{"gap_s_mean", gap},
+                             {"payload_bytes", bytes},
+                             {"follows_shift", f},
+                             {"shift",
+                              {{"mean_s", f ? following(gap, bytes) : blocking(gap, bytes)}}}});
+        return pts;
+    };
+    auto set = [&](int ranks, bool with_following) {
+        return ExchangeModel::from_profile(
+                   {{"exchange",
+                     {{{"ranks", ranks}, {"cores", 2}, {"points", points(with_following)}}}}})
+            .sets()
+            .front();
+    };
+    const auto two = set(2, true);
+    EXPECT_TRUE(two.has(ShiftMode::following));
+    EXPECT_FALSE(two.has(ShiftMode::overlapped));
+    for (double gap : {1e-3, 1e-2})
+        for (double bytes : {64.0, 1000.0, 16384.0}) {
+            EXPECT_NEAR(ExchangeModel::shift_seconds(two, gap, bytes, ShiftMode::following),
+                        following(gap, bytes), 1e-12);
+            EXPECT_NEAR(ExchangeModel::shift_seconds(two, gap, bytes), blocking(gap, bytes), 1e-12);
+        }
+    // The ghosts 10 us after the migration of a 10 ms step: following; the densities half a
+    // step after the ghosts: blocking, at the gap since their own kind.
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 1e-5, 1e-2, 16384), following(1e-2, 16384),
+                1e-12);
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 5e-3, 1e-2, 16384), blocking(1e-2, 16384),
+                1e-12);
+    // Just outside a tenth of the step: blocking.
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 1.01e-3, 1e-2, 64), blocking(1e-2, 64),
+                1e-12);
+    // Without following points, the blocking table.
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(set(2, false), 1e-5, 1e-2, 16384),
+                blocking(1e-2, 16384), 1e-12);
+    // Time-shared: the gap since any shift, blocking (held below the first gap measured).
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(set(3, true), 1e-5, 1e-2, 16384),
+                blocking(1e-3, 16384), 1e-12);
+    // A point both overlapped and following is refused by name.
+    auto both = points(true);
+    both[0]["overlapped"] = true;
+    try {
+        ExchangeModel::from_profile(
+            {{"exchange", {{{"ranks", 2}, {"cores", 2}, {"points", both}}}}});
+        ADD_FAILURE() << "a point both overlapped and following was accepted";
+    } catch (const sphperf::UsageError &e) {
+        EXPECT_NE(std::string(e.what()).find("both overlapped and following"), std::string::npos)
             << e.what();
     }
 }

@@ -51,19 +51,23 @@ private:
 // the mean cost of one shift (handshake excluded: counts and payloads both ways) by the gap of
 // compute before it and the payload, per rank count, and the round overhead of time-sharing.
 // The mean, not the median: the model predicts sums and the cost has a heavy tail.
-// `overlapped` points (exchange --overlapped) measure what sph --overlap leaves exposed of a
-// shift: posting the payloads and completing the receives, with `gap_s` the compute behind them.
+// Three tables: `blocking` points, a shift after compute; `following` points (exchange
+// --following), a shift right after another one, with `gap_s` from the last of its kind (the
+// compute and the shift before); `overlapped` points (exchange --overlapped), what sph --overlap
+// leaves exposed of a shift, posting the payloads and completing the receives, with `gap_s` the
+// compute behind them.
+enum class ShiftMode { blocking, following, overlapped };
 struct ExchangePoint {
     double gap_s = 0, bytes = 0, mean_s = 0, median_s = 0, overhead = 0; // overhead 0: unknown
-    bool overlapped = false;
+    ShiftMode mode = ShiftMode::blocking;
 };
 struct ExchangeSet {
     int ranks = 0, cores = 0;
     std::vector<ExchangePoint> points;
     double load() const { return static_cast<double>(ranks) / cores; }
-    bool has_overlapped() const {
+    bool has(ShiftMode mode) const {
         return std::any_of(points.begin(), points.end(),
-                           [](const ExchangePoint &p) { return p.overlapped; });
+                           [mode](const ExchangePoint &p) { return p.mode == mode; });
     }
 };
 
@@ -76,17 +80,19 @@ public:
     const ExchangeSet &set_for(int ranks, int threads, int cores) const;
     // Mean seconds of one shift after `gap_s` of compute, carrying `bytes` per payload:
     // log-linear in the gap between measured gaps (held at the ends), linear in the payload.
-    // `overlapped`: the exposed part of an overlapped shift with `gap_s` of compute behind it
-    // (the set must have such points).
+    // Other modes read their own table (the set must have its points): `overlapped`, the
+    // exposed part of an overlapped shift with `gap_s` of compute behind it.
     static double shift_seconds(const ExchangeSet &set, double gap_s, double bytes,
-                                bool overlapped = false);
+                                ShiftMode mode = ShiftMode::blocking);
     // One of the app's shifts, `since_any_s` after its previous shift of any kind and
     // `since_kind_s` after the previous one of its own kind (migration, ghosts, densities).
-    // Within the cores the second decides: each kind recurs once a step with its own payload,
-    // and the shifts between (other sizes, other protocols) do not warm its path (measured:
-    // 18 KB ghosts 9 us after a migration cost 10-11 us, as after a whole step, not the 6 us
-    // of back-to-back shifts; session 19). Above the cores the first does: the shift waits
-    // for a neighbour descheduled behind the compute since the last exchange of any kind.
+    // Within the cores the second decides: each kind recurs once a step with its own payload.
+    // A shift within a tenth of that of the one before (the ghosts, packed right after the
+    // migration) reads the following table when the set has one: on some hosts the shift
+    // before warms the path (measured here: 16 KB after 10 ms of compute 15 us, 9.5 us right
+    // after a 64 B shift; on the first host alike, 10-11 us; sessions 19 and 29). Above the
+    // cores the gap since any shift decides: the shift waits for a neighbour descheduled
+    // behind the compute since the last exchange of any kind.
     static double app_shift_seconds(const ExchangeSet &set, double since_any_s, double since_kind_s,
                                     double bytes);
     // Round time over the time-sharing bound (>= 1 when measured), at that gap; 1 when the set

@@ -172,9 +172,9 @@ private:
     void handshake(int tag) const;
     // Hockney time of one MPI_Sendrecv to `dest` and from `src` (0 without costs attached).
     double sendrecv_hockney(int dest, double out_bytes, int src, double in_bytes) const;
-    // One MPI_Sendrecv of raw bytes, timed as comm and tallied.
-    void sendrecv(const void *out, int out_bytes, int dest, void *in, int in_bytes, int src,
-                  int tag);
+    // One MPI_Sendrecv of raw bytes, timed as comm and tallied; returns its seconds.
+    double sendrecv(const void *out, int out_bytes, int dest, void *in, int in_bytes, int src,
+                    int tag);
     PhaseTimers *timers_ = nullptr;
     MessageCost cost_west_, cost_east_, overlap_west_, overlap_east_;
     ShiftCost shift_cost_;
