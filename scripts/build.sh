@@ -8,7 +8,9 @@ build="${SPHPERF_BUILD_DIR:-$root/build}"
 
 bash "$root/scripts/install-deps.sh"
 if [ ! -f "$build/CMakeCache.txt" ]; then
-    cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release
+    # Ninja compiles a target's sources while the libraries it links are still building; with
+    # Makefiles a fresh build of the main job's programs took 158 s here, with Ninja 110 s.
+    cmake -G Ninja -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release
 fi
 targets=()
 for t in "$@"; do targets+=(--target "$t"); done

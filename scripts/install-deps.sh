@@ -11,7 +11,7 @@ set -euo pipefail
 # scripts/slurm/local-slurm.sh, a one-node Slurm on this machine for tests and demos.
 
 packages=(
-    build-essential cmake pkg-config git
+    build-essential cmake ninja-build pkg-config git
     libopenmpi-dev openmpi-bin
     libopenblas-dev
     libhwloc-dev hwloc
