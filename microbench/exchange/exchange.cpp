@@ -268,11 +268,11 @@ Point measure(const Config &cfg, const Chain &chain, Work &work, double elements
             return ovl.run(chain, out, in, [&] { work.run(elements); });
         const double t0 = wall_seconds();
         work.run(elements);
-        const double lead_s = mode == Mode::following ? [&] {
-            const ShiftTimes l = shift(chain, lead_out, lead_in);
-            return l.wait_s + l.comm_s;
-        }()
-                                                      : 0.0;
+        double lead_s = 0;
+        if (mode == Mode::following) {
+            const ShiftTimes lead = shift(chain, lead_out, lead_in);
+            lead_s = lead.wait_s + lead.comm_s;
+        }
         ShiftTimes s = shift(chain, out, in);
         s.behind_s = wall_seconds() - t0 - lead_s - s.wait_s - s.comm_s;
         return s;
