@@ -430,26 +430,31 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
         sums.push_back(sum);
     }
     EXPECT_NEAR(sums[1] / sums[0], 2.0, 1e-9);
-    // With overlapped points (exchange --overlapped) an --overlap run costs its ghost and
-    // density exchanges from them: per rank and step one blocking migration shift and two
-    // overlapped ones, each at its table's flat cost.
-    {
-        auto j = load(flat("blocking_part.json", 1e-3, 2, host));
+    // An exchange report whose blocking points cost 1e-3 s, with a copy of each flagged `flag`
+    // (overlapped or follows_shift) at 1e-1 s.
+    auto with_second_table = [&](const std::string &name, const char *flag) {
+        auto j = load(flat("blocking_" + name, 1e-3, 2, host));
         auto points = nlohmann::json::array();
         for (const auto &p : j["points"])
             if (!p.value("overlapped", false) && !p.value("follows_shift", false))
                 points.push_back(p);
         for (auto p : nlohmann::json(points)) {
-            p["overlapped"] = true;
+            p[flag] = true;
             p["shift"]["mean_s"] = 1e-1;
             points.push_back(p);
         }
         j["points"] = points;
-        const auto exchange = dir / "with_overlapped.json";
-        std::ofstream(exchange) << j.dump();
+        const auto path = dir / name;
+        std::ofstream(path) << j.dump();
+        return path.string();
+    };
+    // With overlapped points (exchange --overlapped) an --overlap run costs its ghost and
+    // density exchanges from them: per rank and step one blocking migration shift and two
+    // overlapped ones, each at its table's flat cost.
+    {
+        const auto exchange = with_second_table("with_overlapped.json", "overlapped");
         const auto report = dir / "overlapped_run.json";
-        r = still_sorted_with_profile(2, machine, report,
-                                      " --overlap --exchange " + exchange.string());
+        r = still_sorted_with_profile(2, machine, report, " --overlap --exchange " + exchange);
         ASSERT_EQ(r.code, 0) << r.err;
         const auto measured = load(report);
         double sum = 0;
@@ -469,21 +474,9 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
     // right after the migration, from them, and its migration and densities, each about half a
     // step after the shift before, blocking.
     {
-        auto j = load(flat("blocking_part2.json", 1e-3, 2, host));
-        auto points = nlohmann::json::array();
-        for (const auto &p : j["points"])
-            if (!p.value("overlapped", false) && !p.value("follows_shift", false))
-                points.push_back(p);
-        for (auto p : nlohmann::json(points)) {
-            p["follows_shift"] = true;
-            p["shift"]["mean_s"] = 1e-1;
-            points.push_back(p);
-        }
-        j["points"] = points;
-        const auto exchange = dir / "with_following.json";
-        std::ofstream(exchange) << j.dump();
+        const auto exchange = with_second_table("with_following.json", "follows_shift");
         const auto report = dir / "following_run.json";
-        r = still_sorted_with_profile(2, machine, report, " --exchange " + exchange.string());
+        r = still_sorted_with_profile(2, machine, report, " --exchange " + exchange);
         ASSERT_EQ(r.code, 0) << r.err;
         const auto measured = load(report);
         double steps = 0, following = 0;
