@@ -68,9 +68,11 @@ fresh_exchange() { # fresh_exchange RANKS NAME [--overlapped]: writes $fresh/NAM
 # needs the validation's simulated time (model/README.md "Memory order"); a prediction they
 # cannot make from these runs is listed as such.
 if [ "$quick" -eq 1 ]; then
-    v_steps=200 v2_steps=40 vs_steps=40 c_steps=200 c35_steps=130 cs_steps=40 interval=20 c_interval=10
+    v_steps=200 v2_steps=40 vs_steps=40 c_steps=200 c35_steps=130 c7_steps=60 cs_steps=40 interval=20
+    c_interval=10
 else
-    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 c35_steps=920 cs_steps=300 interval=100 c_interval=20
+    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 c35_steps=920 c7_steps=300 cs_steps=300
+    interval=100 c_interval=20
 fi
 
 # Calibration runs in two rounds, one before the validation runs and one amid them: the machine's
@@ -87,9 +89,15 @@ calibrate_round() { # calibrate_round LABEL
         if [ "$grid" = sorted ]; then
             sph 2 "cal_dambreak_s0.5_${grid}_$1" --setup dambreak --scale 0.5 --grid "$grid" \
                 --steps "$c_steps" --interval "$c_interval"
-        elif [ "$1" = a ]; then
-            sph 2 "cal_dambreak_s0.35_${grid}_$1" --setup dambreak --scale 0.35 --grid "$grid" \
-                --steps "$c35_steps" --interval "$c_interval"
+        else
+            [ "$1" = a ] && sph 2 "cal_dambreak_s0.35_${grid}_$1" --setup dambreak --scale 0.35 \
+                --grid "$grid" --steps "$c35_steps" --interval "$c_interval"
+            # A second, larger scale over the flow's start (0.035 in Froude time): at 0.35 a
+            # particle has 33 interactions, at 1-2 it has 40, so the per-interaction cost at
+            # 0.35 alone carried its surface's per-particle share up to scale 2 (+9 to +21 % in
+            # 4 of 5 main jobs, model/README.md, session 30).
+            sph 2 "cal_dambreak_s0.7_${grid}_$1" --setup dambreak --scale 0.7 --grid "$grid" \
+                --steps "$c7_steps" --interval "$c_interval"
         fi
         sph 2 "cal_still_s0.5_${grid}_$1" --setup still --scale 0.5 --grid "$grid" \
             --steps "$cs_steps" --interval "$c_interval"

@@ -75,6 +75,7 @@ std::vector<double> fitted_compute(const LinearFit &f, const IntervalStats &iv) 
 struct Point {
     RankWork work;
     double pairs = 0, exported = 0, compute_s_per_step = 0;
+    double froude_t = 0; // interval midpoint / sqrt(scale)
     int run = 0, ranks = 1;
 };
 
@@ -90,6 +91,7 @@ std::vector<Point> points_of(const SphRun &run, int index) {
             p.pairs = r.pairs;
             p.exported = r.exported;
             p.compute_s_per_step = r.compute_s() / r.steps;
+            p.froude_t = (iv.time_s - 0.5 * r.steps * run.config.dt) / std::sqrt(run.config.scale);
             p.run = index;
             p.ranks = run.config.ranks;
             out.push_back(p);
@@ -171,8 +173,31 @@ const Scored &select_terms(const std::vector<Scored> &ok, TermSelection rule) {
 // Cost fit for one grid and thread count: every subset of terms containing "interactions" whose
 // costs all come out non-negative is scored by leave-one-run-out cross-validation (with one
 // cost level per setup unless the rule pools them); the rule picks one, every score is reported.
-json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs, TermSelection rule,
-                 TimeProfile profile) {
+// With a Froude-time profile, the points of each setup up to the Froude time its shortest run
+// reaches. The cost of an interaction rises 40 % over a dam break as the particles lose their
+// memory order (the profile's part); a long small-scale run beside a short larger-scale one
+// would otherwise pass that rise off as a per-particle cost of the wrong sign.
+std::vector<Point> common_reach(const std::vector<Point> &pts, const std::vector<SphRun> &runs) {
+    std::map<int, double> run_reach;
+    for (const auto &p : pts)
+        run_reach[p.run] = std::max(run_reach[p.run], p.froude_t);
+    std::map<std::string, double> reach;
+    for (const auto &[run, t] : run_reach) {
+        const auto &setup = runs.at(static_cast<std::size_t>(run)).config.setup;
+        const auto it = reach.find(setup);
+        reach[setup] = it == reach.end() ? t : std::min(it->second, t);
+    }
+    std::vector<Point> out;
+    for (const auto &p : pts)
+        if (p.froude_t <= reach.at(runs.at(static_cast<std::size_t>(p.run)).config.setup))
+            out.push_back(p);
+    return out;
+}
+
+json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &runs,
+                 TermSelection rule, TimeProfile profile) {
+    const std::vector<Point> pts =
+        profile == TimeProfile::froude ? common_reach(all_pts, runs) : all_pts;
     // With a Froude-time profile the flow's evolution is the profile's: no term that grows with
     // simulated time (descents) competes with it.
     std::vector<std::string> optional{"const", "owned", "walls", "ghost", "cell_moves"};
@@ -287,6 +312,12 @@ json compute_fit(const std::vector<Point> &pts, const std::vector<SphRun> &runs,
     j["candidates"] = candidates;
     j["residuals_s"] = residuals;
     j["runs"] = std::set<int>(groups.begin(), groups.end()).size();
+    j["fit_window"] = {{"points_used", pts.size()},
+                       {"points_recorded", all_pts.size()},
+                       {"rule", profile == TimeProfile::froude
+                                    ? "per setup, intervals up to the Froude time its shortest "
+                                      "calibration run reaches"
+                                    : "every interval"}};
     return j;
 }
 

@@ -202,6 +202,42 @@ TEST(ModelCli, CalibratePredictValidate) {
     EXPECT_TRUE(fs::exists(f.dir / "v0.json"));
 }
 
+// With the Froude-time profile the cost terms are fitted over the flow every calibration run of
+// a setup covers: beside a run cut to its first half (same scale), the full run's later
+// intervals are left to the profile. Without the profile every interval is a point.
+TEST(ModelCli, CostTermsAreFittedOverTheFlowEveryRunCovers) {
+    const auto &f = fixture();
+    auto shorter = load(f.run2);
+    auto &ivs = shorter["intervals"];
+    ASSERT_EQ(ivs.size(), 6u);
+    ivs.erase(ivs.begin() + 3, ivs.end());
+    const auto cut = f.dir / "run2_first_half.json";
+    std::ofstream(cut) << shorter.dump();
+    auto busy_points = [](const nlohmann::json &report, std::size_t intervals) {
+        int n = 0;
+        for (std::size_t k = 0; k < intervals; ++k)
+            for (const auto &rk : report["intervals"][k]["ranks"])
+                n += rk["steps"].get<double>() >= 1 && rk["field"].get<double>() > 0;
+        return n;
+    };
+    const auto full = load(f.run1);
+    const int early = busy_points(full, 3) + busy_points(shorter, 3);
+    const int all = busy_points(full, 6) + busy_points(shorter, 3);
+    for (const std::string profile : {"froude", "none"}) {
+        const auto out = f.dir / ("model_window_" + profile + ".json");
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+                " --time-profile " + profile + " --runs " + f.run1.string() + " " + cut.string() +
+                " --out " + out.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto m = load(out);
+        const auto &c = m["compute"][0];
+        EXPECT_EQ(c["fit_window"]["points_recorded"].get<int>(), all) << profile;
+        EXPECT_EQ(c["fit_window"]["points_used"].get<int>(), profile == "froude" ? early : all);
+        EXPECT_EQ(c["points"].get<int>(), profile == "froude" ? early : all);
+    }
+}
+
 // A balanced 3-rank run: the model cuts the trace's workload by the app's rule, so its first cut
 // is the run's own; the re-cut by the run's cuts gives every rank's field and wall particles;
 // and validate pairs the run with the balanced prediction, not the equal one.
