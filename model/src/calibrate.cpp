@@ -79,6 +79,12 @@ struct Point {
     int run = 0, ranks = 1;
 };
 
+// The Froude time of an interval's midpoint (simulated time / sqrt(scale)): where the cost
+// fit's window and the time profile place it.
+double froude_midpoint(const SphRun &run, const IntervalStats &iv, double steps) {
+    return (iv.time_s - 0.5 * steps * run.config.dt) / std::sqrt(run.config.scale);
+}
+
 // Every (interval, rank) of a run with at least one step.
 std::vector<Point> points_of(const SphRun &run, int index) {
     std::vector<Point> out;
@@ -91,7 +97,7 @@ std::vector<Point> points_of(const SphRun &run, int index) {
             p.pairs = r.pairs;
             p.exported = r.exported;
             p.compute_s_per_step = r.compute_s() / r.steps;
-            p.froude_t = (iv.time_s - 0.5 * r.steps * run.config.dt) / std::sqrt(run.config.scale);
+            p.froude_t = froude_midpoint(run, iv, r.steps);
             p.run = index;
             p.ranks = run.config.ranks;
             out.push_back(p);
@@ -658,7 +664,7 @@ json compute_time_profile(const json &entry, const std::vector<const SphRun *> &
                 }
                 if (s.fitted <= 0)
                     continue;
-                s.t = (iv.time_s - 0.5 * steps * r->config.dt) / std::sqrt(r->config.scale);
+                s.t = froude_midpoint(*r, iv, steps);
                 v.push_back(s);
             }
         if (v.empty())
