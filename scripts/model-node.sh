@@ -108,14 +108,18 @@ calibrate_round() { # calibrate_round LABEL
     # 1.057/1.079), and Cell+Sorted's run is the cheapest (0.23 s against 1.0 s).
     sph 3 "cal_still_s0.5_sorted_r3_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
-    # One rank x 2 threads (the cost per interaction at 2 threads is fitted on its own). On this
-    # VM a 2-thread run was bimodal, 3.0 or 4.5 ns per interaction whatever the scale
-    # (model/README.md, session 16): the inter-core latency of the two vCPUs, which switches in
-    # spells. Since each thread keeps one block of cells (session 21) the far mode costs about
-    # 15 % more instead of 40 %, but no number of calibration runs tells which mode a later run
-    # lands in.
-    sph 1x2 "cal_dambreak_s0.5_sorted_t2_$1" --setup dambreak --scale 0.5 --grid sorted \
-        --steps "$c_steps" --interval "$c_interval"
+    # One rank x 2 threads (the cost at 2 threads is fitted on its own). On this VM a 2-thread
+    # run was bimodal (model/README.md, session 16): the inter-core latency of the two vCPUs,
+    # which switches in spells; since each thread keeps one block of cells (session 21) the far
+    # mode costs about 15 % more, and no number of calibration runs tells which mode a later run
+    # lands in. The dam break at two scales (session 31): a step also costs about 50 us whatever
+    # its work, a fifth of a scale-0.35 step and 3 % of a scale-1 one, which runs at one scale
+    # cannot tell from the cost per interaction. The same number of steps reaches the same
+    # Froude time at every scale.
+    for s in 0.35 0.7; do
+        sph 1x2 "cal_dambreak_s${s}_sorted_t2_$1" --setup dambreak --scale "$s" --grid sorted \
+            --steps "$c_steps" --interval "$c_interval"
+    done
     sph 1x2 "cal_still_s0.5_sorted_t2_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     cal_s=$((cal_s + SECONDS - t0))
@@ -186,15 +190,16 @@ validate_run 2 val_still_s1_sorted_overlap_r2 --setup still --grid sorted --over
     --steps "$vs_steps" --interval "$interval"
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
-# model_and_validate DIR RULE PROFILE: calibrate with the compute-cost term rule RULE and the
-# time profile PROFILE, predict, validate.
+# model_and_validate DIR RULE PROFILE [WEIGHTS]: calibrate with the compute-cost term rule RULE,
+# the time profile PROFILE and the fit weights WEIGHTS (relative unless given), predict, validate.
 model_and_validate() {
-    local dir=$1 rule=$2 profile=$3
+    local dir=$1 rule=$2 profile=$3 weights=${4:-relative}
     mkdir -p "$dir"
     rm -f "$dir/refused.txt"
     stage "calibration ($rule, time profile $profile)"
     "$build/bin/sphmodel" calibrate --machine "$machine" --runs "$runs"/cal_*.json \
-        --term-selection "$rule" --time-profile "$profile" --out "$dir/model.json"
+        --term-selection "$rule" --time-profile "$profile" --fit-weights "$weights" \
+        --out "$dir/model.json"
 
     stage "predictions ($rule)"
     predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
@@ -237,10 +242,12 @@ model_and_validate() {
 }
 # The term rule in use was chosen (session 13) after comparing rules on three main jobs' runs,
 # and the Froude-time profile (session 16) after seeing the scale-1 dam-break errors: both are
-# tuned, so the same runs go through the models before them too: without the profile
-# (session 15's model) and with neither (the untuned rule).
+# tuned, and so are the relative fit weights (session 31, after seeing the 2-thread dam break's
+# errors). The same runs go through the models before them too: with absolute weights (session
+# 30's model), without the profile (session 15's) and with neither (the untuned rule).
 model_and_validate "$out" levelled-one-se froude
-model_and_validate "$out/no-profile" levelled-one-se none >/dev/null
-model_and_validate "$out/pooled-one-percent" pooled-one-percent none >/dev/null
+model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null
+model_and_validate "$out/no-profile" levelled-one-se none absolute >/dev/null
+model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute >/dev/null
 /usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" --validation-s "$val_s" \
     --fresh-exchange-s "$fresh_s"

@@ -332,6 +332,16 @@ def markdown(model, validation, args, out):
                          f"validation data. Untuned, the previous rule (pooled-one-percent) on the same runs: "
                          f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % over {o['count']} "
                          f"configurations (pooled-one-percent/validation.json).")
+        weighted = {c.get("fit_weights", "absolute") for c in model["compute"]}
+        other = os.path.join(args.dir, "absolute-weights", "validation.json")
+        if weighted == {"relative"} and os.path.exists(other):
+            o = load(other)["summary"]["wall_abs_error"]
+            lines.append(f"Cost fit weighted per unit of each calibration run's step (calibrate "
+                         f"--fit-weights relative, so a small-scale run's per-step cost counts as much "
+                         f"as a large run's), chosen in session 31 after seeing the 2-thread dam break's "
+                         f"errors: **tuned**. With absolute weights (seconds per step, session 30's model) "
+                         f"on the same runs: median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
+                         f"over {o['count']} configurations (absolute-weights/validation.json).")
         profiled = any(c.get("time_profile") for c in model["compute"])
         other = os.path.join(args.dir, "no-profile", "validation.json")
         if profiled and os.path.exists(other):

@@ -12,6 +12,7 @@
 #include <iterator>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <set>
 
 namespace sphperf::model {
@@ -201,7 +202,7 @@ std::vector<Point> common_reach(const std::vector<Point> &pts, const std::vector
 }
 
 json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &runs,
-                 TermSelection rule, TimeProfile profile) {
+                 TermSelection rule, TimeProfile profile, FitWeights weights) {
     const std::vector<Point> pts =
         profile == TimeProfile::froude ? common_reach(all_pts, runs) : all_pts;
     // With a Froude-time profile the flow's evolution is the profile's: no term that grows with
@@ -224,38 +225,52 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
         }
     }
     const bool by_run = std::set<int>(groups.begin(), groups.end()).size() >= 2;
-    for (unsigned mask = 0; mask < (1u << optional.size()); ++mask) {
-        std::vector<std::string> terms{"interactions"};
-        for (std::size_t k = 0; k < optional.size(); ++k)
-            if (mask & (1u << k))
-                terms.push_back(optional[k]);
+    // Relative weights: every row divided by its run's median step (a run's own scale, not the
+    // point's noisy value), so the fit, its levels and its held-out error are per unit of step.
+    // The held-out scores carry their unit: seconds per step, or a fraction of the run's step.
+    const bool relative = weights == FitWeights::relative;
+    const std::string cv_key = relative ? "cv_rmse_rel" : "cv_rmse_s",
+                      cv_se_key = relative ? "cv_rmse_se_rel" : "cv_rmse_se_s";
+    const std::vector<double> unit =
+        relative ? group_median_units(y, groups) : std::vector<double>(pts.size(), 1.0);
+    std::vector<double> yw = y;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        yw[i] /= unit[i];
+    auto design = [&](const std::vector<std::string> &terms, bool weighted) {
         std::vector<std::vector<double>> X;
         for (const auto &p : pts) {
             X.emplace_back();
             for (const auto &t : terms)
                 X.back().push_back(p.work.value(t));
         }
+        return weighted ? divided_rows(std::move(X), unit) : X;
+    };
+    for (unsigned mask = 0; mask < (1u << optional.size()); ++mask) {
+        std::vector<std::string> terms{"interactions"};
+        for (std::size_t k = 0; k < optional.size(); ++k)
+            if (mask & (1u << k))
+                terms.push_back(optional[k]);
+        const std::vector<std::vector<double>> X = design(terms, true);
         try {
-            const CvScore score = cross_validate_score(X, y, groups, setups);
+            const CvScore score = cross_validate_score(X, yw, groups, setups);
             // The held-out runs' summed-compute error, reported beside. Selecting on it was
             // tried in session 12 and not kept (model/README.md, "Cost across scales").
             const json cv_run =
-                by_run ? json(cross_validate_runs(X, y, groups, setups)) : json(nullptr);
+                by_run ? json(cross_validate_runs(X, yw, groups, setups)) : json(nullptr);
             json c = {{"terms", terms},
-                      {"cv_rmse_s", score.rmse},
-                      {"cv_rmse_se_s", score.rmse_se},
+                      {cv_key, score.rmse},
+                      {cv_se_key, score.rmse_se},
                       {"cv_run_rel_rms", cv_run}};
             // Every term is a cost: a set that fits one negative (one cost traded against
             // another, as ghosts against cell moves in two runs) is not a physical model.
-            const LinearFit all = fit_levelled(X, y, terms, setups).fit;
+            const LinearFit all = fit_levelled(X, yw, terms, setups).fit;
             if (std::any_of(all.coef.begin(), all.coef.end(), [](double v) { return v < 0; }))
                 c["negative_cost"] = true;
             else
                 ok.push_back({terms, score, cv_run});
             candidates.push_back(c);
         } catch (const std::invalid_argument &) {
-            candidates.push_back(
-                {{"terms", terms}, {"cv_rmse_s", nullptr}, {"rank_deficient", true}});
+            candidates.push_back({{"terms", terms}, {cv_key, nullptr}, {"rank_deficient", true}});
         }
     }
     if (ok.empty())
@@ -263,16 +278,11 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
                          "distinct rank-intervals)");
     const Scored &chosen = select_terms(ok, rule);
     const std::vector<std::string> &best = chosen.terms;
-    std::vector<std::vector<double>> X;
-    for (const auto &p : pts) {
-        X.emplace_back();
-        for (const auto &t : best)
-            X.back().push_back(p.work.value(t));
-    }
+    const std::vector<std::vector<double>> X = design(best, false), Xw = design(best, true);
     // Least squares picks the shape (which terms, in what ratio); the level is the median
     // calibration run's, so one run measured while the machine was slow does not set it.
-    const LinearFit ls = fit_levelled(X, y, best, setups).fit;
-    const RunLevel level = run_level(ls, X, y, groups);
+    const LinearFit ls = fit_levelled(Xw, yw, best, setups).fit;
+    const RunLevel level = run_level(ls, Xw, yw, groups);
     const LinearFit f = scaled(ls, level.median);
     // The level per setup too: the cost of an interaction depends on the flow (measured here,
     // the still tank's runs sit 5-15 % below the dam break's on the stored-list grids, in every
@@ -287,9 +297,20 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
                             {"factor_mean", sphperf::summarize(v).avg},
                             {"runs", v.size()}};
     std::vector<double> residuals;
-    for (std::size_t i = 0; i < pts.size(); ++i)
+    double ss_res = 0, ss_tot = 0;
+    const double y_mean = std::accumulate(y.begin(), y.end(), 0.0) / static_cast<double>(y.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) {
         residuals.push_back(f.predict(X[i]) - y[i]);
+        ss_res += residuals.back() * residuals.back();
+        ss_tot += (y[i] - y_mean) * (y[i] - y_mean);
+    }
     json j = f.to_json();
+    // R^2 and the residual standard error in seconds per step whatever the weights (a
+    // relative fit's own are per unit of step).
+    const double dof = static_cast<double>(pts.size() - best.size());
+    j["r2"] = ss_tot > 0 ? 1.0 - ss_res / ss_tot : 1.0;
+    j["rse"] = dof > 0 ? std::sqrt(ss_res / dof) : 0.0;
+    j["fit_weights"] = relative ? "relative" : "absolute";
     json factors = json::array();
     for (std::size_t k = 0; k < level.groups.size(); ++k)
         factors.push_back({{"run", runs.at(static_cast<std::size_t>(level.groups[k])).path},
@@ -303,14 +324,15 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
                       {"spread_pct", level.spread_pct},
                       {"runs", factors},
                       {"per_setup", per_setup}};
-    j["cv_rmse_s"] = chosen.score.rmse;
-    j["cv_rmse_se_s"] = chosen.score.rmse_se;
+    j[cv_key] = chosen.score.rmse;
+    j[cv_se_key] = chosen.score.rmse_se;
     j["cv_run_rel_rms"] = chosen.cv_run;
     j["selected_by"] =
         rule == TermSelection::levelled_one_se
             ? "levelled-one-se: one cost level per setup in the fit and its leave-one-run-out "
               "cross-validation; the smallest set of terms whose held-out root mean square "
-              "error per step is within one standard error (cv_rmse_se_s) of the best set's"
+              "error per step is within one standard error (cv_rmse_se_s, or cv_rmse_se_rel "
+              "with relative weights) of the best set's"
             : "pooled-one-percent: one fit pooling the setups; a larger set of terms kept when "
               "it lowers the held-out root mean square error per step by 1 %";
     j["term_selection"] =
@@ -807,7 +829,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     model["regressions"] = regs;
     json compute = json::array();
     for (const auto &[key, pts] : by_grid_threads) {
-        json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile);
+        json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile, opt.fit_weights);
         c["grid"] = key.first;
         c["threads"] = key.second;
         if (opt.time_profile == TimeProfile::froude) {

@@ -288,6 +288,37 @@ double cross_validate_runs(const std::vector<std::vector<double>> &X, std::span<
     return std::sqrt(ss / static_cast<double>(distinct.size()));
 }
 
+std::vector<double> group_median_units(std::span<const double> y, std::span<const int> groups) {
+    if (y.size() != groups.size())
+        throw std::invalid_argument("group_median_units: y and groups differ in length");
+    std::map<int, std::vector<double>> by_group;
+    for (std::size_t i = 0; i < y.size(); ++i)
+        by_group[groups[i]].push_back(y[i]);
+    std::map<int, double> unit;
+    for (const auto &[g, v] : by_group) {
+        const double m = median(v);
+        if (!(m > 0))
+            throw std::invalid_argument("group_median_units: group " + std::to_string(g) +
+                                        " has a median of " + std::to_string(m) +
+                                        ", not a positive time");
+        unit[g] = m;
+    }
+    std::vector<double> out;
+    for (int g : groups)
+        out.push_back(unit.at(g));
+    return out;
+}
+
+std::vector<std::vector<double>> divided_rows(std::vector<std::vector<double>> X,
+                                              std::span<const double> units) {
+    if (X.size() != units.size())
+        throw std::invalid_argument("divided_rows: X and units differ in length");
+    for (std::size_t i = 0; i < X.size(); ++i)
+        for (double &v : X[i])
+            v /= units[i];
+    return X;
+}
+
 RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X,
                    std::span<const double> y, std::span<const int> groups) {
     if (X.size() != y.size() || y.size() != groups.size())

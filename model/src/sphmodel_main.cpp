@@ -20,6 +20,7 @@ struct Options {
     bool allow_other_host = false;
     std::string term_selection = "levelled-one-se";
     std::string time_profile = "froude";
+    std::string fit_weights = "relative";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -56,6 +57,12 @@ int run(int argc, char **argv) {
                     "none (the fit alone, with the memory-order term descents at simulated time)")
         ->capture_default_str()
         ->check(CLI::IsMember({"froude", "none"}));
+    cal->add_option("--fit-weights", o.fit_weights,
+                    "How the compute-cost fit and its cross-validation weigh the rank-intervals: "
+                    "absolute (seconds per step) or relative (each divided by its run's median "
+                    "step, so small-scale runs count as much as large ones)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"absolute", "relative"}));
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
@@ -142,7 +149,8 @@ int run(int argc, char **argv) {
                       {o.allow_other_host,
                        o.term_selection == "pooled-one-percent" ? TermSelection::pooled_one_percent
                                                                 : TermSelection::levelled_one_se,
-                       o.time_profile == "none" ? TimeProfile::none : TimeProfile::froude});
+                       o.time_profile == "none" ? TimeProfile::none : TimeProfile::froude,
+                       o.fit_weights == "relative" ? FitWeights::relative : FitWeights::absolute});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -305,9 +305,13 @@ std::string calibration_table(const json &m) {
     }
     s += "Compute cost per step per rank (terms chosen by leave-one-run-out cross-validation)\n";
     for (const auto &c : m.at("compute")) {
-        s += fmt("  grid %-5s threads %d: R^2 %.4f, RSE %.3g s, CV RMSE %.3g s, %zu points\n",
+        const bool relative = c.contains("cv_rmse_rel");
+        const std::string cv = relative
+                                   ? fmt("%.2f %% of the run's step", 100 * d(c.at("cv_rmse_rel")))
+                                   : fmt("%.3g s", d(c.at("cv_rmse_s")));
+        s += fmt("  grid %-5s threads %d: R^2 %.4f, RSE %.3g s, CV RMSE %s, %zu points\n",
                  c.at("grid").get<std::string>().c_str(), c.at("threads").get<int>(), d(c.at("r2")),
-                 d(c.at("rse")), d(c.at("cv_rmse_s")), c.at("points").get<std::size_t>());
+                 d(c.at("rse")), cv.c_str(), c.at("points").get<std::size_t>());
         if (c.contains("cv_run_rel_rms") && c.at("cv_run_rel_rms").is_number())
             s += fmt("    held-out runs' summed compute: %.1f %% rms error\n",
                      100 * d(c.at("cv_run_rel_rms")));

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -99,7 +100,7 @@ TEST(ModelCli, CalibratePredictValidate) {
     expect_envelope(m, "sphmodel-calibration");
     for (const char *p :
          {"/regressions/dambreak/pairs/coefficients/m/value",
-          "/regressions/dambreak/exports/coefficients/r/se_pct", "/compute/0/cv_rmse_s",
+          "/regressions/dambreak/exports/coefficients/r/se_pct", "/compute/0/cv_rmse_rel",
           "/roofline/verdict", "/traces/dambreak/columns", "/machine/hockney/classes"})
         EXPECT_TRUE(m.contains(nlohmann::json::json_pointer(p))) << p;
     // The time-shared 3-rank runs set the time-sharing overhead, not the compute cost; the
@@ -236,6 +237,41 @@ TEST(ModelCli, CostTermsAreFittedOverTheFlowEveryRunCovers) {
         EXPECT_EQ(c["fit_window"]["points_used"].get<int>(), profile == "froude" ? early : all);
         EXPECT_EQ(c["points"].get<int>(), profile == "froude" ? early : all);
     }
+}
+
+// Relative weights (the default) and absolute ones: the held-out score carries its unit in its
+// key, and R^2 and the residual standard error stay in seconds per step either way.
+TEST(ModelCli, FitWeightsReportTheirUnits) {
+    const auto &f = fixture();
+    for (const std::string weights : {"relative", "absolute"}) {
+        const auto out = f.dir / ("model_weights_" + weights + ".json");
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+                " --fit-weights " + weights + " --runs " + f.run1.string() + " " + f.run2.string() +
+                " --out " + out.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto m = load(out);
+        const auto &c = m["compute"][0];
+        EXPECT_EQ(c["fit_weights"], weights);
+        const bool relative = weights == "relative";
+        EXPECT_EQ(c.contains("cv_rmse_rel"), relative);
+        EXPECT_EQ(c.contains("cv_rmse_s"), !relative);
+        for (const auto &cand : c["candidates"])
+            EXPECT_TRUE(cand.contains(relative ? "cv_rmse_rel" : "cv_rmse_s"));
+        double ss = 0;
+        for (const auto &e : c["residuals_s"])
+            ss += e.get<double>() * e.get<double>();
+        const double dof = c["points"].get<double>() - c["terms"].size();
+        EXPECT_NEAR(c["rse"].get<double>(), std::sqrt(ss / dof), 1e-9 * std::sqrt(ss / dof));
+        EXPECT_NE(r.out.find(relative ? "of the run's step" : "CV RMSE"), std::string::npos);
+    }
+    const sphperf::testing::Run bad =
+        run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+            " --fit-weights squared --runs " + f.run1.string() + " --out " +
+            (f.dir / "never.json").string());
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_NE(bad.err.find("squared"), std::string::npos) << bad.err;
+    EXPECT_FALSE(fs::exists(f.dir / "never.json"));
 }
 
 // A balanced 3-rank run: the model cuts the trace's workload by the app's rule, so its first cut

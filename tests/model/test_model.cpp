@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <numeric>
 #include <random>
@@ -153,6 +154,76 @@ TEST(Fit, LevelledCrossValidationDoesNotBuyTheConstant) {
     EXPECT_GT(with.rmse_se, 0.0);
     EXPECT_LT(without.rmse, 0.6 * pooled_without.rmse);
     EXPECT_DOUBLE_EQ(cross_validate(d.without_const, d.y, d.runs, d.setups), without.rmse);
+}
+
+// The calibration the main job runs at 2 threads: dam breaks at two scales (a 50 us per-step
+// cost is a fifth of the small one's step and a twentieth of the large one's) and a still tank
+// whose steps are the longest, each run off by a drift of a few percent. In seconds the long
+// steps' drift hides the per-step cost; per unit of each run's step it stands out, and the
+// relative fit recovers it.
+struct ScaledRuns {
+    std::vector<std::vector<double>> with_const, without_const;
+    std::vector<double> y;
+    std::vector<int> runs, setups;
+};
+ScaledRuns scaled_runs() {
+    std::mt19937 rng(17);
+    std::normal_distribution<double> noise(0, 0.01);
+    constexpr double per_interaction = 5e-9, per_step = 50e-6;
+    const std::array<double, 6> drift{1.03, 0.97, 0.98, 1.02, 1.04, 0.96};
+    const std::array<double, 6> work{45e3, 45e3, 170e3, 170e3, 800e3, 800e3};
+    ScaledRuns d;
+    for (int run = 0; run < 6; ++run) {
+        const int setup = run < 4 ? 0 : 1;
+        const double level = setup == 0 ? 1.05 : 0.95;
+        for (int k = 0; k < 20; ++k) {
+            const double interactions = work[run] * (1 + 0.005 * k);
+            d.with_const.push_back({interactions, 1.0});
+            d.without_const.push_back({interactions});
+            d.y.push_back(level * (per_interaction * interactions + per_step) * drift[run] *
+                          (1 + noise(rng)));
+            d.runs.push_back(run);
+            d.setups.push_back(setup);
+        }
+    }
+    return d;
+}
+
+TEST(Fit, RelativeWeightsSeeThePerStepCostOfTheSmallRuns) {
+    const ScaledRuns d = scaled_runs();
+    const std::vector<double> unit = group_median_units(d.y, d.runs);
+    std::vector<double> yw = d.y;
+    for (std::size_t i = 0; i < yw.size(); ++i)
+        yw[i] /= unit[i];
+    const auto with = divided_rows(d.with_const, unit),
+               without = divided_rows(d.without_const, unit);
+    // Per unit of step: the constant beats the proportional cost by more than one standard error.
+    const CvScore rel_with = cross_validate_score(with, yw, d.runs, d.setups);
+    const CvScore rel_without = cross_validate_score(without, yw, d.runs, d.setups);
+    EXPECT_LT(rel_with.rmse + rel_with.rmse_se, rel_without.rmse);
+    // In seconds the still tank's drift is as large as the small runs' whole per-step cost: the
+    // one-standard-error rule keeps the proportional cost alone.
+    const CvScore abs_with = cross_validate_score(d.with_const, d.y, d.runs, d.setups);
+    const CvScore abs_without = cross_validate_score(d.without_const, d.y, d.runs, d.setups);
+    EXPECT_LE(abs_without.rmse, abs_with.rmse + abs_with.rmse_se);
+    // The relative fit recovers both costs (the levels average 1, so a cost is level-scaled).
+    const LevelledFit f = fit_levelled(with, yw, {"interactions", "const"}, d.setups);
+    const double mean_level = (f.level(0) + f.level(1)) / 2;
+    EXPECT_NEAR(f.fit.coefficient("const") * mean_level, 50e-6, 10e-6);
+    EXPECT_NEAR(f.fit.coefficient("interactions") * mean_level, 5e-9, 0.25e-9);
+    EXPECT_NEAR(f.level(0) / f.level(1), 1.05 / 0.95, 0.03);
+}
+
+TEST(Fit, GroupMedianUnitsAreEachRunsMedianStep) {
+    const std::vector<double> y{1, 3, 2, 10, 30, 20, 0.5};
+    const std::vector<int> runs{0, 0, 0, 4, 4, 4, 2};
+    const std::vector<double> unit = group_median_units(y, runs);
+    EXPECT_EQ(unit, (std::vector<double>{2, 2, 2, 20, 20, 20, 0.5}));
+    const auto rows = divided_rows({{4, 1}, {6, 2}}, std::vector<double>{2, 0.5});
+    EXPECT_EQ(rows, (std::vector<std::vector<double>>{{2, 0.5}, {12, 4}}));
+    EXPECT_THROW(group_median_units(std::vector<double>{0, 0, 1}, std::vector<int>{1, 1, 1}),
+                 std::invalid_argument);
+    EXPECT_THROW(group_median_units(y, std::vector<int>{0}), std::invalid_argument);
 }
 
 TEST(Fit, RunLevelIsTheMedianRunsAndIgnoresOneSlowRun) {

@@ -64,6 +64,14 @@ struct CvScore {
 CvScore cross_validate_score(const std::vector<std::vector<double>> &X, std::span<const double> y,
                              std::span<const int> groups, std::span<const int> classes = {});
 
+// Relative weights for a fit over runs of different sizes: each point's unit is the median y of
+// its group (its run's typical step, not the point's own noisy value). Dividing a row of X and
+// its y by its unit makes every run count by its relative error, as the targets judge it.
+std::vector<double> group_median_units(std::span<const double> y, std::span<const int> groups);
+// X with row i divided by units[i].
+std::vector<std::vector<double>> divided_rows(std::vector<std::vector<double>> X,
+                                              std::span<const double> units);
+
 // What a prediction is judged on: each run (group) left out in turn, its summed time predicted
 // by a fit to the others; the root mean square over runs of the relative error of that sum.
 // Unlike cross_validate, a run of small per-step times counts as much as one of large ones, so a

@@ -69,10 +69,15 @@ enum class TermSelection { levelled_one_se, pooled_one_percent };
 // time-varying term in the fit; none: the fit alone (with the memory-order term "descents" read
 // at simulated time, when selected).
 enum class TimeProfile { froude, none };
+// How the cost fit weighs its points. absolute: seconds per step, so the runs with the longest
+// steps dominate; relative: each point divided by its run's median step, so a small-scale run
+// counts as much as a large one and the held-out error is relative, as the targets are.
+enum class FitWeights { absolute, relative };
 struct CalibrateOptions {
     bool allow_other_host = false;
     TermSelection term_selection = TermSelection::levelled_one_se;
     TimeProfile time_profile = TimeProfile::froude;
+    FitWeights fit_weights = FitWeights::relative;
 };
 nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
