@@ -322,37 +322,41 @@ def markdown(model, validation, args, out):
     if s["wall_abs_error"]:
         lines.append(f"Total wall time |error|: median {100 * s['wall_abs_error']['median']:.1f} %, "
                      f"max {100 * s['wall_abs_error']['max']:.1f} % (targets 5 % and 10 %).")
-        sel = {c.get("term_selection", "pooled-one-percent") for c in model["compute"]}
-        other = os.path.join(args.dir, "pooled-one-percent", "validation.json")
-        if sel == {"levelled-one-se"} and os.path.exists(other):
+        def untuned(subdir):
+            """The same runs through an earlier model beside the results: its wall |error| line."""
+            other = os.path.join(args.dir, subdir, "validation.json")
+            if not os.path.exists(other):
+                return None
             o = load(other)["summary"]["wall_abs_error"]
-            lines.append(f"Compute-cost terms chosen by levelled-one-se (a cost level per setup, the smallest "
-                         f"set within one standard error of the best cross-validation score), a rule picked in "
-                         f"session 13 after comparing six rules on three main jobs' runs: **tuned** against "
-                         f"validation data. Untuned, the previous rule (pooled-one-percent) on the same runs: "
-                         f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % over {o['count']} "
-                         f"configurations (pooled-one-percent/validation.json).")
-        weighted = {c.get("fit_weights", "absolute") for c in model["compute"]}
-        other = os.path.join(args.dir, "absolute-weights", "validation.json")
-        if weighted == {"relative"} and os.path.exists(other):
-            o = load(other)["summary"]["wall_abs_error"]
-            lines.append(f"Cost fit weighted per unit of each calibration run's step (calibrate "
-                         f"--fit-weights relative, so a small-scale run's per-step cost counts as much "
-                         f"as a large run's), chosen in session 31 after seeing the 2-thread dam break's "
-                         f"errors: **tuned**. With absolute weights (seconds per step, session 30's model) "
-                         f"on the same runs: median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
-                         f"over {o['count']} configurations (absolute-weights/validation.json).")
-        profiled = any(c.get("time_profile") for c in model["compute"])
-        other = os.path.join(args.dir, "no-profile", "validation.json")
-        if profiled and os.path.exists(other):
-            o = load(other)["summary"]["wall_abs_error"]
-            lines.append(f"Cost over Froude time (calibrate --time-profile froude: the fit times the "
-                         f"calibration runs' measured / fitted compute at the target's Froude time, no "
-                         f"descents term), chosen in session 16 after seeing the scale-1 dam-break errors: "
-                         f"**tuned**. Without it (the fit alone, descents read at simulated time, session 15's "
-                         f"model) on the same runs: median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % "
-                         f"over the {o['count']} configurations it can predict from these calibration runs "
-                         f"(no-profile/validation.json; refusals, if any, in no-profile/refused.txt).")
+            return (f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % over {o['count']} "
+                    f"configurations")
+
+        # Each tuned choice beside the model before it, on the same runs: (in use, folder, line).
+        choices = [
+            ({c.get("term_selection", "pooled-one-percent") for c in model["compute"]} == {"levelled-one-se"},
+             "pooled-one-percent",
+             "Compute-cost terms chosen by levelled-one-se (a cost level per setup, the smallest set within "
+             "one standard error of the best cross-validation score), a rule picked in session 13 after "
+             "comparing six rules on three main jobs' runs: **tuned** against validation data. Untuned, the "
+             "previous rule (pooled-one-percent) on the same runs: {o} (pooled-one-percent/validation.json)."),
+            ({c.get("fit_weights", "absolute") for c in model["compute"]} == {"relative"},
+             "absolute-weights",
+             "Cost fit weighted per unit of each calibration run's step (calibrate --fit-weights relative, "
+             "so a small-scale run's per-step cost counts as much as a large run's), chosen in session 31 "
+             "after seeing the 2-thread dam break's errors: **tuned**. With absolute weights (seconds per "
+             "step, session 30's model) on the same runs: {o} (absolute-weights/validation.json)."),
+            (any(c.get("time_profile") for c in model["compute"]),
+             "no-profile",
+             "Cost over Froude time (calibrate --time-profile froude: the fit times the calibration runs' "
+             "measured / fitted compute at the target's Froude time, no descents term), chosen in session 16 "
+             "after seeing the scale-1 dam-break errors: **tuned**. Without it (the fit alone, descents read "
+             "at simulated time, session 15's model) on the same runs: {o}, those it can predict from these "
+             "calibration runs (no-profile/validation.json; refusals, if any, in no-profile/refused.txt)."),
+        ]
+        for in_use, subdir, line in choices:
+            o = untuned(subdir)
+            if in_use and o:
+                lines.append(line.format(o=o))
     if s["inline_comm_abs_error_per_interval"]:
         lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
                      f"measured gap; {fresh_source(args)}): median per-interval |error| "

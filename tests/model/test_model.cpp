@@ -161,18 +161,13 @@ TEST(Fit, LevelledCrossValidationDoesNotBuyTheConstant) {
 // whose steps are the longest, each run off by a drift of a few percent. In seconds the long
 // steps' drift hides the per-step cost; per unit of each run's step it stands out, and the
 // relative fit recovers it.
-struct ScaledRuns {
-    std::vector<std::vector<double>> with_const, without_const;
-    std::vector<double> y;
-    std::vector<int> runs, setups;
-};
-ScaledRuns scaled_runs() {
+TwoSetups scaled_runs() {
     std::mt19937 rng(17);
     std::normal_distribution<double> noise(0, 0.01);
     constexpr double per_interaction = 5e-9, per_step = 50e-6;
     const std::array<double, 6> drift{1.03, 0.97, 0.98, 1.02, 1.04, 0.96};
     const std::array<double, 6> work{45e3, 45e3, 170e3, 170e3, 800e3, 800e3};
-    ScaledRuns d;
+    TwoSetups d;
     for (int run = 0; run < 6; ++run) {
         const int setup = run < 4 ? 0 : 1;
         const double level = setup == 0 ? 1.05 : 0.95;
@@ -190,7 +185,7 @@ ScaledRuns scaled_runs() {
 }
 
 TEST(Fit, RelativeWeightsSeeThePerStepCostOfTheSmallRuns) {
-    const ScaledRuns d = scaled_runs();
+    const TwoSetups d = scaled_runs();
     const std::vector<double> unit = group_median_units(d.y, d.runs);
     std::vector<double> yw = d.y;
     for (std::size_t i = 0; i < yw.size(); ++i)
