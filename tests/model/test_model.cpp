@@ -651,15 +651,19 @@ TEST(Comm, ExchangeTableInterpolatesAndMatchesTheLoad) {
     }
 }
 
+// A planted blocking shift cost by gap and payload, for the exchange-table tests below.
+namespace {
+double planted_blocking(double gap, double bytes) {
+    return 2e-6 + 1e-6 * gap / 1e-3 + 1e-9 * bytes;
+}
+} // namespace
+
 // Overlapped points (exchange --overlapped) are a table of their own: each kind interpolates
 // among its own points, the round overhead comes from the blocking ones, and a set without
 // overlapped points says so.
 TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
     using sphperf::model::ExchangeModel;
     using sphperf::model::ShiftMode;
-    auto blocking = [](double gap, double bytes) {
-        return 2e-6 + 1e-6 * gap / 1e-3 + 1e-9 * bytes;
-    };
     auto exposed = [](double gap, double bytes) {
         return 5e-7 + 1e-7 * gap / 1e-3 + 2e-10 * bytes;
     };
@@ -672,7 +676,8 @@ TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
                      {"payload_bytes", bytes},
                      {"overlapped", ovl},
                      {"round_overhead", ovl ? 5.0 : 1.5},
-                     {"shift", {{"mean_s", ovl ? exposed(gap, bytes) : blocking(gap, bytes)}}}});
+                     {"shift",
+                      {{"mean_s", ovl ? exposed(gap, bytes) : planted_blocking(gap, bytes)}}}});
     auto without = pts;
     without.erase(without.begin(), without.begin() + 4);
     const auto m = ExchangeModel::from_profile(
@@ -683,7 +688,8 @@ TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
     // interpolation in the gap is exact at the points and the payload is linear.
     for (double gap : {1e-3, 1e-2})
         for (double bytes : {64.0, 1000.0, 16384.0}) {
-            EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes), blocking(gap, bytes), 1e-12);
+            EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes), planted_blocking(gap, bytes),
+                        1e-12);
             EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes, ShiftMode::overlapped),
                         exposed(gap, bytes), 1e-12);
         }
@@ -717,9 +723,6 @@ TEST(Comm, OverlappedExchangePointsAreATableOfTheirOwn) {
 TEST(Comm, FollowingExchangePointsCostAShiftRightAfterAnother) {
     using sphperf::model::ExchangeModel;
     using sphperf::model::ShiftMode;
-    auto blocking = [](double gap, double bytes) {
-        return 2e-6 + 1e-6 * gap / 1e-3 + 1e-9 * bytes;
-    };
     auto following = [](double gap, double bytes) {
         return 1e-6 + 3e-7 * gap / 1e-3 + 5e-10 * bytes;
     };
@@ -729,12 +732,12 @@ TEST(Comm, FollowingExchangePointsCostAShiftRightAfterAnother) {
             for (double bytes : {64.0, 16384.0})
                 for (double gap : {1e-3, 1e-2})
                     if (!f || with_following)
-                        pts.push_back(
-                            {{"gap_s_mean", gap},
-                             {"payload_bytes", bytes},
-                             {"follows_shift", f},
-                             {"shift",
-                              {{"mean_s", f ? following(gap, bytes) : blocking(gap, bytes)}}}});
+                        pts.push_back({{"gap_s_mean", gap},
+                                       {"payload_bytes", bytes},
+                                       {"follows_shift", f},
+                                       {"shift",
+                                        {{"mean_s", f ? following(gap, bytes)
+                                                      : planted_blocking(gap, bytes)}}}});
         return pts;
     };
     auto set = [&](int ranks, bool with_following) {
@@ -751,23 +754,24 @@ TEST(Comm, FollowingExchangePointsCostAShiftRightAfterAnother) {
         for (double bytes : {64.0, 1000.0, 16384.0}) {
             EXPECT_NEAR(ExchangeModel::shift_seconds(two, gap, bytes, ShiftMode::following),
                         following(gap, bytes), 1e-12);
-            EXPECT_NEAR(ExchangeModel::shift_seconds(two, gap, bytes), blocking(gap, bytes), 1e-12);
+            EXPECT_NEAR(ExchangeModel::shift_seconds(two, gap, bytes), planted_blocking(gap, bytes),
+                        1e-12);
         }
     // The ghosts 10 us after the migration of a 10 ms step: following; the densities half a
     // step after the ghosts: blocking, at the gap since their own kind.
     EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 1e-5, 1e-2, 16384), following(1e-2, 16384),
                 1e-12);
-    EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 5e-3, 1e-2, 16384), blocking(1e-2, 16384),
-                1e-12);
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 5e-3, 1e-2, 16384),
+                planted_blocking(1e-2, 16384), 1e-12);
     // Just outside a tenth of the step: blocking.
-    EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 1.01e-3, 1e-2, 64), blocking(1e-2, 64),
-                1e-12);
+    EXPECT_NEAR(ExchangeModel::app_shift_seconds(two, 1.01e-3, 1e-2, 64),
+                planted_blocking(1e-2, 64), 1e-12);
     // Without following points, the blocking table.
     EXPECT_NEAR(ExchangeModel::app_shift_seconds(set(2, false), 1e-5, 1e-2, 16384),
-                blocking(1e-2, 16384), 1e-12);
+                planted_blocking(1e-2, 16384), 1e-12);
     // Time-shared: the gap since any shift, blocking (held below the first gap measured).
     EXPECT_NEAR(ExchangeModel::app_shift_seconds(set(3, true), 1e-5, 1e-2, 16384),
-                blocking(1e-3, 16384), 1e-12);
+                planted_blocking(1e-3, 16384), 1e-12);
     // A point both overlapped and following is refused by name.
     auto both = points(true);
     both[0]["overlapped"] = true;
