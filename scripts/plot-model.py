@@ -203,11 +203,11 @@ def fresh_source(args):
             f"the machine profile's")
 
 
-def inline_by_load(validation):
+def inline_by_load(validation, key="inline_error"):
     """The per-interval inline error within the cores and time-shared apart."""
     within, shared = [], []
     for c in validation["configurations"]:
-        e = [abs(x["inline_error"]) for x in c["comm_series"] if "inline_error" in x]
+        e = [abs(x[key]) for x in c["comm_series"] if key in x]
         (shared if c["oversubscribed"] else within).extend(e)
     part = lambda v: (f"median {100 * statistics.median(v):.1f} % over {len(v)} intervals" if v
                       else "no interval")
@@ -362,6 +362,13 @@ def markdown(model, validation, args, out):
                      f"measured gap; {fresh_source(args)}): median per-interval |error| "
                      f"{100 * s['inline_comm_abs_error_per_interval']['median']:.1f} % (target 20 %); "
                      f"{inline_by_load(validation)}.")
+        own = s.get("inline_comm_abs_error_per_interval_own_kind_gap")
+        if own:
+            lines.append(f"Within the cores the migration and the density refresh are costed at the gap since "
+                         f"the shift before of any kind, a rule chosen in session 32 after seeing session 31's "
+                         f"migration errors (**tuned**; model/README.md, \"Which gap, again\"). Untuned, at the "
+                         f"gap since their own kind (the rule before, recorded by the same runs): median "
+                         f"per-interval |error| {100 * own['median']:.1f} %; {inline_by_load(validation, 'inline_own_kind_gap_error')}.")
         by_exchange = inline_by_exchange(validation)
         if by_exchange:
             lines.append(by_exchange)

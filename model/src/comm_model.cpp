@@ -232,13 +232,15 @@ double ExchangeModel::shift_seconds(const ExchangeSet &set, double gap_s, double
 }
 
 double ExchangeModel::app_shift_seconds(const ExchangeSet &set, double since_any_s,
-                                        double since_kind_s, double bytes) {
+                                        double since_kind_s, double bytes, GapRule rule) {
+    const bool follows = since_any_s < follows_within * since_kind_s;
     if (set.load() > 1)
         return shift_seconds(set, since_any_s, bytes);
-    const bool follows = since_any_s < follows_within * since_kind_s;
+    if (!follows)
+        return shift_seconds(set, rule == GapRule::any_shift ? since_any_s : since_kind_s, bytes);
     return shift_seconds(set, since_kind_s, bytes,
-                         follows && set.has(ShiftMode::following) ? ShiftMode::following
-                                                                  : ShiftMode::blocking);
+                         set.has(ShiftMode::following) ? ShiftMode::following
+                                                       : ShiftMode::blocking);
 }
 
 double ExchangeModel::round_overhead(const ExchangeSet &set, double gap_s) {

@@ -24,6 +24,9 @@ constexpr int samples_per_interval = 4; // workload sampled at interval quarter-
 constexpr double count_bytes = sizeof(int);
 constexpr double density_bytes = sizeof(double);
 constexpr double shifts_per_step = 3; // migration, ghosts, density refresh
+// Of which the ghosts come right after the migration: within the cores the other two split the
+// step between them.
+constexpr double blocking_shifts_per_step = 2;
 
 struct Costs {
     LinearFit pairs, exports, interactions, compute, cell_moves;
@@ -256,9 +259,10 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
                                 overhead)
             .step_s;
     };
-    // The compute between two shifts decides what they cost on this kind of machine
-    // (exchange benchmark): about a third of the step lies between two shifts of any kind,
-    // a whole step between two of the same kind (ExchangeModel::app_shift_seconds picks).
+    // The compute since the shift before decides what a shift costs on this kind of machine
+    // (exchange benchmark; ExchangeModel::app_shift_seconds): within the cores about half a
+    // step before the migration and before the density refresh, a whole step since the last
+    // ghosts for the ghosts, which follow the migration; above them a third of the step.
     // Above the core count the ranks take turns where the launcher put them, so a step spans
     // at least the busiest core's.
     double busy = 0;
@@ -310,7 +314,9 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
             if (!set)
                 return hockney;
             // Above the cores the turn of a descheduled neighbour decides, as inline.
-            const double since_any = follows && set->load() <= 1 ? 0.0 : gap;
+            const double since_any = set->load() > 1 ? gap
+                                     : follows       ? 0.0
+                                                     : busy / blocking_shifts_per_step;
             const double measured =
                 ExchangeModel::app_shift_seconds(*set, since_any, busy, most * per_particle);
             // A shift that leaves the node lasts at least its network messages.

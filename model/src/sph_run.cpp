@@ -57,6 +57,9 @@ void from_json(const json &j, RankStats &r) {
             const auto &s = j.at("shifts").at(key);
             r.shift_comm_s[k] = figure(s, "comm_s");
             r.shift_predict_s[k] = figure(s, "comm_predict_s");
+            r.shift_predict_own_kind_s[k] = s.contains("comm_predict_own_kind_gap_s")
+                                                ? figure(s, "comm_predict_own_kind_gap_s")
+                                                : r.shift_predict_s[k];
         }
     for (const auto &[k, v] : j.at("timers").items()) {
         r.timers[k] = v.get<double>();

@@ -52,6 +52,8 @@ json validate(const json &header, const std::vector<json> &predictions,
     json rows = json::array(), unmatched = json::array();
     std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors,
         memory_errors;
+    // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
+    std::vector<double> own_kind_errors;
     // Inline errors of the intervals whose latency probe found the machine in the mode the
     // profile was measured in, and the others. Measured on this VM (session 19): the app's
     // probe reads 1.4x the benchmark's figure in the same mode, and the two modes differ 2.5x;
@@ -121,6 +123,12 @@ json validate(const json &header, const std::vector<json> &predictions,
             for (std::size_t k = 0; k < piv.size(); ++k) {
                 double mc = 0, ic = 0, hc = 0, pc = 0, probe = 0, probed = 0;
                 sph::ShiftTimes ms{}, is{};
+                double ic_own_kind = 0; // inline, by the rule before session 32
+                for (const auto &r : m.intervals[k].ranks) {
+                    ic_own_kind += r.comm_predict_s;
+                    for (std::size_t s = 0; s < ms.size(); ++s)
+                        ic_own_kind += r.shift_predict_own_kind_s[s] - r.shift_predict_s[s];
+                }
                 for (const auto &r : m.intervals[k].ranks) {
                     mc += r.timer("comm_s");
                     ic += r.comm_predict_s;
@@ -145,6 +153,8 @@ json validate(const json &header, const std::vector<json> &predictions,
                     e["inline_comm_s"] = ic;
                     e["inline_error"] = rel(ic, mc);
                     inline_comm_errors.push_back(std::abs(rel(ic, mc)));
+                    e["inline_own_kind_gap_error"] = rel(ic_own_kind, mc);
+                    own_kind_errors.push_back(std::abs(rel(ic_own_kind, mc)));
                 }
                 // Reports that split comm by exchange; a kind this run never sent is left out.
                 for (std::size_t s = 0; s < ms.size(); ++s)
@@ -260,6 +270,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"inline_comm_abs_error_per_interval_profile_mode", summary(same_mode_errors)},
         {"inline_comm_abs_error_per_interval_other_mode", summary(other_mode_errors)},
         {"inline_comm_abs_error_per_interval_by_shift", by_shift},
+        {"inline_comm_abs_error_per_interval_own_kind_gap", summary(own_kind_errors)},
         {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
         {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
         {"peak_rss_abs_error", summary(memory_errors)},
@@ -404,6 +415,11 @@ std::string validation_table(const json &v) {
     if (!sm.at("inline_comm_abs_error_per_interval").is_null())
         s += fmt("  communication, inline prediction, |error| per interval: median %.1f%%\n",
                  100 * d(sm.at("inline_comm_abs_error_per_interval").at("median")));
+    if (sm.contains("inline_comm_abs_error_per_interval_own_kind_gap") &&
+        !sm.at("inline_comm_abs_error_per_interval_own_kind_gap").is_null())
+        s += fmt("    the same, blocking shifts at the gap since their own kind (the rule before "
+                 "session 32): median %.1f%%\n",
+                 100 * d(sm.at("inline_comm_abs_error_per_interval_own_kind_gap").at("median")));
     if (sm.contains("inline_comm_abs_error_per_interval_by_shift")) {
         std::string parts;
         for (const auto key : sph::shift_keys) {

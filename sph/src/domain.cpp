@@ -189,10 +189,12 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
         static_cast<double>(sizeof(T) * std::max({to_east.size(), to_west.size(),
                                                   in.from_west.size(), in.from_east.size()}));
     tally_.hockney_s += shift_hockney_s_;
-    const double predicted =
-        shift_cost_ ? shift_cost_(since_any, since_kind, payload) : shift_hockney_s_;
-    tally_.predicted_s += predicted;
-    tally_.shift_predict_s[k] += predicted;
+    const ShiftPrediction predicted = shift_cost_
+                                          ? shift_cost_(since_any, since_kind, payload)
+                                          : ShiftPrediction{shift_hockney_s_, shift_hockney_s_};
+    tally_.predicted_s += predicted.seconds;
+    tally_.shift_predict_s[k] += predicted.seconds;
+    tally_.shift_predict_own_kind_s[k] += predicted.own_kind_gap_s;
     return in;
 }
 
@@ -423,13 +425,14 @@ void Domain::complete_shift(double payload_bytes) {
     // was shorter than the rest of what the shift costs after compute (exchange benchmark:
     // synchronisation, cold caches). The rest is hidden (the thesis' T_overlap).
     const double blocking =
-        shift_cost_ ? shift_cost_(flight_.gaps.first, flight_.gaps.second, payload_bytes)
+        shift_cost_ ? shift_cost_(flight_.gaps.first, flight_.gaps.second, payload_bytes).seconds
                     : shift_hockney_s_;
     const double exposed =
         exposed_cost_ ? exposed_cost_(window, payload_bytes)
                       : std::max(flight_.exposed_s, std::max(blocking, flight_.exposed_s) - window);
     tally_.predicted_s += exposed;
     tally_.shift_predict_s[k] += exposed;
+    tally_.shift_predict_own_kind_s[k] += exposed;
     tally_.hidden_predict_s += std::max(0.0, blocking - exposed);
 }
 

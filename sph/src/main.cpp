@@ -285,7 +285,11 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
         const auto set = std::make_shared<model::ExchangeSet>(
             exchange.set_for(domain.ranks(), threads, Topology().cores()));
         domain.attach_shift_cost([set](double since_any_s, double since_kind_s, double bytes) {
-            return model::ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes);
+            using model::ExchangeModel, model::GapRule;
+            return ShiftPrediction{
+                ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes),
+                ExchangeModel::app_shift_seconds(*set, since_any_s, since_kind_s, bytes,
+                                                 GapRule::own_kind_gap)};
         });
         if (set->has(model::ShiftMode::overlapped)) {
             overlap_measured = true;

@@ -236,8 +236,10 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
             for (std::size_t k = 0; k < phase_keys.size(); ++k)
                 jr["timers"][phase_keys[k]] = r.timers[k];
             for (std::size_t k = 0; k < shift_keys.size(); ++k)
-                jr["shifts"][shift_keys[k]] = {{"comm_s", r.shift_comm_s[k]},
-                                               {"comm_predict_s", r.shift_predict_s[k]}};
+                jr["shifts"][shift_keys[k]] = {
+                    {"comm_s", r.shift_comm_s[k]},
+                    {"comm_predict_s", r.shift_predict_s[k]},
+                    {"comm_predict_own_kind_gap_s", r.shift_predict_own_kind_s[k]}};
             jiv["ranks"].push_back(jr);
         }
         j["intervals"].push_back(jiv);

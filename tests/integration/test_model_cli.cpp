@@ -489,6 +489,9 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
                 for (const char *kind : {"migration", "ghosts", "densities"}) {
                     const auto &k = rk["shifts"][kind];
                     EXPECT_NEAR(k["comm_predict_s"].get<double>(), steps * cost, 1e-12) << kind;
+                    // The rule before session 32, recorded beside: a flat table costs alike.
+                    EXPECT_NEAR(k["comm_predict_own_kind_gap_s"].get<double>(), steps * cost, 1e-12)
+                        << kind;
                     EXPECT_GT(k["comm_s"].get<double>(), 0) << kind;
                 }
                 EXPECT_NEAR(rk["halo_comm_s"].get<double>(),

@@ -61,6 +61,9 @@ struct ExchangePoint {
     double gap_s = 0, bytes = 0, mean_s = 0, median_s = 0, overhead = 0; // overhead 0: unknown
     ShiftMode mode = ShiftMode::blocking;
 };
+// Which compute gap costs a blocking shift within the cores (app_shift_seconds).
+enum class GapRule { any_shift, own_kind_gap };
+
 struct ExchangeSet {
     int ranks = 0, cores = 0;
     std::vector<ExchangePoint> points;
@@ -86,15 +89,18 @@ public:
                                 ShiftMode mode = ShiftMode::blocking);
     // One of the app's shifts, `since_any_s` after its previous shift of any kind and
     // `since_kind_s` after the previous one of its own kind (migration, ghosts, densities).
-    // Within the cores the second decides: each kind recurs once a step with its own payload.
-    // A shift within a tenth of that of the one before (the ghosts, packed right after the
-    // migration) reads the following table when the set has one: on some hosts the shift
-    // before warms the path (measured here: 16 KB after 10 ms of compute 15 us, 9.5 us right
-    // after a 64 B shift; on the first host alike, 10-11 us; sessions 19 and 29). Above the
-    // cores the gap since any shift decides: the shift waits for a neighbour descheduled
-    // behind the compute since the last exchange of any kind.
+    // The compute since the last shift of any kind decides: every message now takes the same
+    // eager path (scripts/mpirun.sh), so any shift warms it (session 32; until then the gap
+    // since the same kind, measured when large ghosts took another protocol). A shift within a
+    // tenth of its own kind's gap after the one before (the ghosts, packed right after the
+    // migration) reads the following table at its own kind's gap when the set has one, else
+    // the blocking table there: the back-to-back point is far too cheap for it (sessions 19
+    // and 29). Above the cores the gap since any shift decides: the shift waits for a
+    // neighbour descheduled behind the compute since the last exchange of any kind.
+    // `rule` own_kind_gap: sessions 19-31's rule, the blocking shifts within the cores at the
+    // gap since their own kind, which every report records beside (the untuned comparison).
     static double app_shift_seconds(const ExchangeSet &set, double since_any_s, double since_kind_s,
-                                    double bytes);
+                                    double bytes, GapRule rule = GapRule::any_shift);
     // Round time over the time-sharing bound (>= 1 when measured), at that gap; 1 when the set
     // is not oversubscribed or has no figure.
     static double round_overhead(const ExchangeSet &set, double gap_s);

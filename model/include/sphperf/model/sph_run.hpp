@@ -25,6 +25,9 @@ struct RankStats {
     std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
     // comm_s and comm_predict_s by exchange (sph::shift_keys); older reports: zeros
     sph::ShiftTimes shift_comm_s{}, shift_predict_s{};
+    // comm_predict_s by the rule before session 32 (model::GapRule::own_kind_gap); reports
+    // before it predicted by that rule, so their comm_predict_s stands in
+    sph::ShiftTimes shift_predict_own_kind_s{};
 
     double timer(const std::string &key) const;
     // Everything the rank computes locally per step (all phases but comm, wait and output).

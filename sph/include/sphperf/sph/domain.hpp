@@ -44,13 +44,14 @@ struct ExchangeCounts {
 // are attached, the predicted time of their transfer: per message by ping-pong Hockney (the
 // thesis' T_COMM_PREDICT), and per shift by the exchange benchmark (falls back to Hockney).
 // shift_s: the comm phase split by exchange (Shift), and shift_predict_s the predicted part of
-// each (they sum to predicted_s). With --overlap also the compute that ran while transfers were in
+// each (they sum to predicted_s), shift_predict_own_kind_s the same by the rule before session
+// 32 (ShiftPrediction). With --overlap also the compute that ran while transfers were in
 // flight (`overlap_s`) and, when costs are attached, the predicted part of those transfers it hid
 // (`hidden_predict_s`).
 struct CommTally {
     double messages = 0, bytes = 0, hockney_s = 0, predicted_s = 0;
     double overlap_s = 0, hidden_predict_s = 0;
-    ShiftTimes shift_s{}, shift_predict_s{};
+    ShiftTimes shift_s{}, shift_predict_s{}, shift_predict_own_kind_s{};
 };
 
 // Ghosts on their way (--overlap): how many will arrive from each side.
@@ -62,8 +63,13 @@ struct GhostsInFlight {
 using MessageCost = std::function<double(double bytes)>;
 // Time of one whole shift (counts and payloads both ways) `since_any_s` after this rank's
 // previous shift and `since_kind_s` after its previous one of the same kind, with payloads of
-// `bytes`.
-using ShiftCost = std::function<double(double since_any_s, double since_kind_s, double bytes)>;
+// `bytes`; beside it the same by the rule before session 32 (model::GapRule::own_kind_gap),
+// recorded as the untuned comparison.
+struct ShiftPrediction {
+    double seconds = 0, own_kind_gap_s = 0;
+};
+using ShiftCost =
+    std::function<ShiftPrediction(double since_any_s, double since_kind_s, double bytes)>;
 // What an overlapped shift leaves exposed (posting and completion) with `behind_s` of compute
 // behind its transfers and `bytes` per payload (exchange --overlapped).
 using ExposedCost = std::function<double(double behind_s, double bytes)>;

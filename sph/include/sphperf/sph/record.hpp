@@ -39,6 +39,7 @@ struct RankInterval {
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
     ShiftTimes shift_comm_s{};    // comm_s split by exchange (migration, ghosts, densities)
     ShiftTimes shift_predict_s{}; // comm_predict_s split the same way
+    ShiftTimes shift_predict_own_kind_s{}; // ... by the rule before session 32 (domain.hpp)
     // comm_s of the ghost and density exchanges (the ones --overlap overlaps)
     double halo_comm_s() const {
         return shift_comm_s[static_cast<std::size_t>(Shift::ghosts)] +
@@ -46,7 +47,7 @@ struct RankInterval {
     }
 
     static constexpr std::size_t fields =
-        22 + static_cast<std::size_t>(Phase::count) + 2 * static_cast<std::size_t>(Shift::count);
+        22 + static_cast<std::size_t>(Phase::count) + 3 * static_cast<std::size_t>(Shift::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

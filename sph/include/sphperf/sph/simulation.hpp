@@ -681,6 +681,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         for (std::size_t k = 0; k < tally.shift_s.size(); ++k) {
             acc_.shift_comm_s[k] += tally.shift_s[k];
             acc_.shift_predict_s[k] += tally.shift_predict_s[k];
+            acc_.shift_predict_own_kind_s[k] += tally.shift_predict_own_kind_s[k];
         }
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)
             acc_.timers[k] += step_timers_.values()[k];
