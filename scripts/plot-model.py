@@ -17,6 +17,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 
 def load(path):
@@ -90,8 +91,14 @@ def scaling(predictions, validation, out):
     axes[1].set_ylabel("speed-up vs fewest ranks")
     axes[2].set_ylabel("parallel efficiency")
     for ax in axes:
-        ax.set_xlabel("ranks (1 thread each unless marked; above 2 they share the 2 cores)")
+        ax.set_xlabel("ranks")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(alpha=0.3)
+    # The long caveat once for the three panels: per panel it ran into its neighbours.
+    cores = validation.get("topology", {}).get("cores")
+    if cores:
+        fig.supxlabel(f"1 thread per rank unless marked; above {cores} ranks they share the {cores} cores",
+                      fontsize=9)
     # One legend, outside the panels, so that it hides no point.
     handles, labels = axes[0].get_legend_handles_labels()
     axes[2].legend(handles, labels, fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0))
