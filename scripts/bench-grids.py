@@ -64,7 +64,9 @@ def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False):
             # all three, and the ghost and density exchanges alone (those --overlap overlaps).
             "comm_s_per_step": j["totals"]["timers"]["comm_s"]["avg"] / steps,
             "halo_comm_s_per_step": sum(r.get("halo_comm_s", 0) for iv in j["intervals"]
-                                        for r in iv["ranks"]) / ranks / steps}
+                                        for r in iv["ranks"]) / ranks / steps,
+            # The binary's flags and the machine it ran on, for the benchmark's own report.
+            "build": j.get("build"), "topology": j.get("topology")}
 
 
 def run_pysph(scale, threads, steps):
@@ -312,8 +314,10 @@ def main():
                   f"evaluation")
 
     commit = git_commit(ROOT)
-    report = {"schema": 4, "benchmark": "grid_comparison", "host": socket.gethostname(),
-              "git_commit": commit, "cores": cores, "particle_steps_per_run": args.particle_steps,
+    first = results[configs[0]][grids[0]][0]
+    report = {"schema": 5, "benchmark": "grid_comparison", "host": socket.gethostname(),
+              "git_commit": commit, "build": first["build"], "topology": first["topology"],
+              "cores": cores, "particle_steps_per_run": args.particle_steps,
               "results": rows, "summary": summary, "overlap": overlap_rows,
               "pysph": pysph_rows}
     write_json(out, report)
