@@ -125,17 +125,14 @@ json validate(const json &header, const std::vector<json> &predictions,
                 sph::ShiftTimes ms{}, is{};
                 double ic_own_kind = 0; // inline, by the rule before session 32
                 for (const auto &r : m.intervals[k].ranks) {
-                    ic_own_kind += r.comm_predict_s;
-                    for (std::size_t s = 0; s < ms.size(); ++s)
-                        ic_own_kind += r.shift_predict_own_kind_s[s] - r.shift_predict_s[s];
-                }
-                for (const auto &r : m.intervals[k].ranks) {
                     mc += r.timer("comm_s");
                     ic += r.comm_predict_s;
+                    ic_own_kind += r.comm_predict_s;
                     hc += r.comm_hockney_s;
                     for (std::size_t s = 0; s < ms.size(); ++s) {
                         ms[s] += r.shift_comm_s[s];
                         is[s] += r.shift_predict_s[s];
+                        ic_own_kind += r.shift_predict_own_kind_s[s] - r.shift_predict_s[s];
                     }
                     if (r.probe_shift_s > 0) {
                         probe += r.probe_shift_s;
