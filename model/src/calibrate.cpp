@@ -201,6 +201,48 @@ std::vector<Point> common_reach(const std::vector<Point> &pts, const std::vector
     return out;
 }
 
+// The work terms (other than "const") that take one value per setup over the points although
+// the calibration changed a setup's scale or rank count: such a term does not follow the
+// configuration, it only names the setup, which the setup's level (or "const") already does,
+// and its cost per unit is a guess that any other count multiplies. Session 32: every list
+// calibration run held 16 ghosts per rank (the floor's, at scales 0.35 and 0.7) in the dam
+// break and 136 in the still tank; the fit costed them at 6.9 us each, and a 3-rank run with
+// 252-265 ghosts per water rank came out 34 % high. When no setup was run in two
+// configurations, nothing tells a per-particle cost from a fixed one, and cross-validation
+// decides as before (a 1-rank run at one scale holds its particles fixed; excluding "owned"
+// there cost 48 % at twice the scale in one session-31 job).
+std::vector<std::string> setup_constant_terms(const std::vector<Point> &pts,
+                                              const std::vector<SphRun> &runs,
+                                              const std::vector<std::string> &terms) {
+    std::map<std::string, std::set<std::pair<double, int>>> configs;
+    for (const auto &p : pts) {
+        const auto &c = runs.at(static_cast<std::size_t>(p.run)).config;
+        configs[c.setup].insert({c.scale, c.ranks});
+    }
+    std::vector<std::string> out;
+    if (std::none_of(configs.begin(), configs.end(),
+                     [](const auto &c) { return c.second.size() >= 2; }))
+        return out;
+    for (const auto &t : terms) {
+        if (t == "const")
+            continue;
+        std::map<std::string, std::pair<double, double>> range;
+        for (const auto &p : pts) {
+            const double v = p.work.value(t);
+            const auto &setup = runs.at(static_cast<std::size_t>(p.run)).config.setup;
+            const auto [it, fresh] = range.try_emplace(setup, v, v);
+            it->second = {std::min(it->second.first, v), std::max(it->second.second, v)};
+        }
+        constexpr double relative_tolerance = 1e-9;
+        if (std::all_of(range.begin(), range.end(), [&](const auto &r) {
+                const auto [lo, hi] = r.second;
+                return hi - lo <= relative_tolerance * std::max({std::abs(lo), std::abs(hi), 1.0});
+            }))
+            out.push_back(t);
+    }
+    return out;
+}
+
 json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &runs,
                  TermSelection rule, TimeProfile profile, FitWeights weights) {
     const std::vector<Point> pts =
@@ -210,6 +252,10 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
     std::vector<std::string> optional{"const", "owned", "walls", "ghost", "cell_moves"};
     if (profile == TimeProfile::none)
         optional.push_back("descents");
+    const std::vector<std::string> excluded = setup_constant_terms(pts, runs, optional);
+    std::erase_if(optional, [&](const std::string &t) {
+        return std::find(excluded.begin(), excluded.end(), t) != excluded.end();
+    });
     json candidates = json::array();
     std::vector<Scored> ok;
     std::vector<double> y;
@@ -338,6 +384,12 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
     j["term_selection"] =
         rule == TermSelection::levelled_one_se ? "levelled-one-se" : "pooled-one-percent";
     j["candidates"] = candidates;
+    json ex = json::array();
+    for (const auto &t : excluded)
+        ex.push_back({{"term", t},
+                      {"reason", "one value per setup over the fit's points: it names the "
+                                 "setup, not a cost per unit"}});
+    j["excluded_terms"] = ex;
     j["residuals_s"] = residuals;
     j["runs"] = std::set<int>(groups.begin(), groups.end()).size();
     j["fit_window"] = {{"points_used", pts.size()},
@@ -349,22 +401,35 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
     return j;
 }
 
-// Cell moves per step from the work the model knows in advance (field, walls, ghosts).
+// Cell moves per step from the work the model knows in advance (field, walls, ghosts): the
+// largest of these sets the runs can tell apart (a single 2-rank run whose water stays on one
+// rank has two distinct rows only), down to a constant.
 json cell_move_fit(const std::vector<Point> &pts) {
-    std::vector<std::vector<double>> X;
+    const std::vector<std::vector<std::string>> sets{{"field", "walls", "ghost", "const"},
+                                                     {"field", "walls", "const"},
+                                                     {"field", "const"},
+                                                     {"const"}};
     std::vector<double> y;
-    for (const auto &p : pts) {
-        X.push_back({p.work.field, p.work.walls, p.work.ghost, 1.0});
+    for (const auto &p : pts)
         y.push_back(p.work.cell_moves);
+    for (const auto &terms : sets) {
+        std::vector<std::vector<double>> X;
+        for (const auto &p : pts) {
+            X.emplace_back();
+            for (const auto &t : terms)
+                X.back().push_back(t == "field"   ? p.work.field
+                                   : t == "walls" ? p.work.walls
+                                   : t == "ghost" ? p.work.ghost
+                                                  : 1.0);
+        }
+        try {
+            return fit_linear(X, y, terms).to_json();
+        } catch (const std::invalid_argument &) {
+            if (terms.size() == 1)
+                throw;
+        }
     }
-    try {
-        return fit_linear(X, y, {"field", "walls", "ghost", "const"}).to_json();
-    } catch (const std::invalid_argument &) {
-        X.clear();
-        for (const auto &p : pts)
-            X.push_back({p.work.field, p.work.walls, 1.0});
-        return fit_linear(X, y, {"field", "walls", "const"}).to_json();
-    }
+    throw std::logic_error("cell_move_fit: unreachable");
 }
 
 // Per setup and grid (each grid visits candidates in its own order), the memory-order decay of

@@ -326,6 +326,12 @@ std::string calibration_table(const json &m) {
         for (const auto &[t, v] : c.at("coefficients").items())
             s += fmt("    %-13s %12.4g s  +- %.3g (%.1f %%)\n", t.c_str(), d(v.at("value")),
                      d(v.at("se")), d(v.at("se_pct")));
+        if (c.contains("excluded_terms") && !c.at("excluded_terms").empty()) {
+            std::string names;
+            for (const auto &e : c.at("excluded_terms"))
+                names += (names.empty() ? "" : ", ") + e.at("term").get<std::string>();
+            s += fmt("    not candidates (one value per setup in these runs): %s\n", names.c_str());
+        }
     }
     if (m.contains("jitter")) {
         const auto &j = m.at("jitter");

@@ -274,6 +274,51 @@ TEST(ModelCli, FitWeightsReportTheirUnits) {
     EXPECT_FALSE(fs::exists(f.dir / "never.json"));
 }
 
+// A work term that keeps one value per setup although the calibration ran the setup at several
+// rank counts only names the setup: it is no candidate, and the model says so. With the runs as
+// measured (ghosts follow the rank count) it stays a candidate, and so it does when every run has
+// one configuration (nothing tells a per-unit cost from a fixed one there).
+TEST(ModelCli, TermsThatOnlyNameTheSetupAreNoCandidates) {
+    const auto &f = fixture();
+    auto with_ghosts = [&](const fs::path &from, const std::string &name) {
+        auto j = load(from);
+        for (auto &iv : j["intervals"])
+            for (auto &rk : iv["ranks"])
+                rk["ghost"] = 16.0;
+        const auto out = f.dir / name;
+        std::ofstream(out) << j.dump();
+        return out.string();
+    };
+    const std::string runs_as_measured =
+                          f.run1.string() + " " + f.run2.string() + " " + f.run3.string(),
+                      fixed_ghosts = with_ghosts(f.run1, "g1.json") + " " +
+                                     with_ghosts(f.run2, "g2.json") + " " +
+                                     with_ghosts(f.run3, "g3.json"),
+                      one_configuration =
+                          with_ghosts(f.run2, "g2.json") + " " + with_ghosts(f.run2, "g2b.json");
+    for (const auto &[runs, excluded] :
+         {std::pair{runs_as_measured, false}, std::pair{fixed_ghosts, true},
+          std::pair{one_configuration, false}}) {
+        const auto out = f.dir / "model_setup_terms.json";
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+                " --runs " + runs + " --out " + out.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto m = load(out);
+        const auto &c = m["compute"][0];
+        bool listed = false;
+        for (const auto &e : c["excluded_terms"])
+            listed = listed || e["term"] == "ghost";
+        EXPECT_EQ(listed, excluded) << runs;
+        bool candidate = false;
+        for (const auto &cand : c["candidates"])
+            for (const auto &t : cand["terms"])
+                candidate = candidate || t == "ghost";
+        EXPECT_EQ(candidate, !excluded) << runs;
+        EXPECT_EQ(r.out.find("not candidates (one value per setup") != std::string::npos, excluded);
+    }
+}
+
 // A balanced 3-rank run: the model cuts the trace's workload by the app's rule, so its first cut
 // is the run's own; the re-cut by the run's cuts gives every rank's field and wall particles;
 // and validate pairs the run with the balanced prediction, not the equal one.
