@@ -201,44 +201,61 @@ std::vector<Point> common_reach(const std::vector<Point> &pts, const std::vector
     return out;
 }
 
-// The work terms (other than "const") that take one value per setup over the points although
-// the calibration changed a setup's scale or rank count: such a term does not follow the
-// configuration, it only names the setup, which the setup's level (or "const") already does,
-// and its cost per unit is a guess that any other count multiplies. Session 32: every list
-// calibration run held 16 ghosts per rank (the floor's, at scales 0.35 and 0.7) in the dam
-// break and 136 in the still tank; the fit costed them at 6.9 us each, and a 3-rank run with
-// 252-265 ghosts per water rank came out 34 % high. When no setup was run in two
-// configurations, nothing tells a per-particle cost from a fixed one, and cross-validation
-// decides as before (a 1-rank run at one scale holds its particles fixed; excluding "owned"
-// there cost 48 % at twice the scale in one session-31 job).
-std::vector<std::string> setup_constant_terms(const std::vector<Point> &pts,
-                                              const std::vector<SphRun> &runs,
-                                              const std::vector<std::string> &terms) {
+// A work term that names the setup rather than following the configuration: its value within
+// each setup stays (nearly) put although the calibration changed a setup's scale or rank count.
+// Its cost per unit is then a free number, fixed by the gap between the setups' levels (which
+// the setup's level or "const" already carries), and any other count multiplies it. Session 32:
+// every list calibration run held 16 ghosts per rank in the dam break and 136 in the still tank;
+// the fit costed them at 6.9 us each, and a 3-rank run with 252-265 ghosts per water rank came
+// out 34 % high. Session 33: the table runs' cell moves sat at 16 and 136-141 per rank and step
+// (0.09 % of their variance within the setups); the fit costed them at 11 us each, and the
+// 3- and 4-rank runs (about 260 per rank) came out 24-162 % high. Every other term in 14 jobs'
+// calibration runs keeps at least 75 % of its variance within the setups. With one configuration
+// per setup nothing tells a per-unit cost from a fixed one, and cross-validation decides as
+// before (a 1-rank run at one scale holds its particles fixed; excluding "owned" there cost 48 %
+// at twice the scale in one session-31 job).
+struct SetupTerm {
+    std::string term;
+    double within_setup_variance_fraction;
+};
+// Below this share of its variance within the setups (a spread within each setup under a tenth
+// of the spread over all points) a term names the setup. Tuned: chosen after session 33's job.
+constexpr double max_within_setup_fraction = 0.01;
+
+std::vector<SetupTerm> setup_terms(const std::vector<Point> &pts, const std::vector<SphRun> &runs,
+                                   const std::vector<std::string> &terms) {
     std::map<std::string, std::set<std::pair<double, int>>> configs;
     for (const auto &p : pts) {
         const auto &c = runs.at(static_cast<std::size_t>(p.run)).config;
         configs[c.setup].insert({c.scale, c.ranks});
     }
-    std::vector<std::string> out;
+    std::vector<SetupTerm> out;
     if (std::none_of(configs.begin(), configs.end(),
                      [](const auto &c) { return c.second.size() >= 2; }))
         return out;
     for (const auto &t : terms) {
         if (t == "const")
             continue;
-        std::map<std::string, std::pair<double, double>> range;
+        std::map<std::string, std::pair<double, int>> sum;
+        double total = 0.0;
         for (const auto &p : pts) {
-            const double v = p.work.value(t);
             const auto &setup = runs.at(static_cast<std::size_t>(p.run)).config.setup;
-            const auto [it, fresh] = range.try_emplace(setup, v, v);
-            it->second = {std::min(it->second.first, v), std::max(it->second.second, v)};
+            auto &s = sum[setup];
+            s.first += p.work.value(t);
+            ++s.second;
+            total += p.work.value(t);
         }
-        constexpr double relative_tolerance = 1e-9;
-        if (std::all_of(range.begin(), range.end(), [&](const auto &r) {
-                const auto [lo, hi] = r.second;
-                return hi - lo <= relative_tolerance * std::max({std::abs(lo), std::abs(hi), 1.0});
-            }))
-            out.push_back(t);
+        const double mean = total / static_cast<double>(pts.size());
+        double within = 0.0, all = 0.0;
+        for (const auto &p : pts) {
+            const auto &s = sum.at(runs.at(static_cast<std::size_t>(p.run)).config.setup);
+            const double v = p.work.value(t);
+            within += std::pow(v - s.first / s.second, 2);
+            all += std::pow(v - mean, 2);
+        }
+        const double fraction = all > 0 ? within / all : 0.0;
+        if (fraction < max_within_setup_fraction)
+            out.push_back({t, fraction});
     }
     return out;
 }
@@ -252,9 +269,10 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
     std::vector<std::string> optional{"const", "owned", "walls", "ghost", "cell_moves"};
     if (profile == TimeProfile::none)
         optional.push_back("descents");
-    const std::vector<std::string> excluded = setup_constant_terms(pts, runs, optional);
+    const std::vector<SetupTerm> excluded = setup_terms(pts, runs, optional);
     std::erase_if(optional, [&](const std::string &t) {
-        return std::find(excluded.begin(), excluded.end(), t) != excluded.end();
+        return std::any_of(excluded.begin(), excluded.end(),
+                           [&](const SetupTerm &e) { return e.term == t; });
     });
     json candidates = json::array();
     std::vector<Scored> ok;
@@ -385,10 +403,13 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
         rule == TermSelection::levelled_one_se ? "levelled-one-se" : "pooled-one-percent";
     j["candidates"] = candidates;
     json ex = json::array();
-    for (const auto &t : excluded)
-        ex.push_back({{"term", t},
-                      {"reason", "one value per setup over the fit's points: it names the "
-                                 "setup, not a cost per unit"}});
+    for (const auto &e : excluded)
+        ex.push_back({{"term", e.term},
+                      {"within_setup_variance_fraction", e.within_setup_variance_fraction},
+                      {"max_within_setup_fraction", max_within_setup_fraction},
+                      {"reason", "(nearly) one value per setup over the fit's points although "
+                                 "a setup ran in two configurations: it names the setup, not a "
+                                 "cost per unit"}});
     j["excluded_terms"] = ex;
     j["residuals_s"] = residuals;
     j["runs"] = std::set<int>(groups.begin(), groups.end()).size();

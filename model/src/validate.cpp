@@ -329,8 +329,11 @@ std::string calibration_table(const json &m) {
         if (c.contains("excluded_terms") && !c.at("excluded_terms").empty()) {
             std::string names;
             for (const auto &e : c.at("excluded_terms"))
-                names += (names.empty() ? "" : ", ") + e.at("term").get<std::string>();
-            s += fmt("    not candidates (one value per setup in these runs): %s\n", names.c_str());
+                names += (names.empty() ? "" : ", ") + e.at("term").get<std::string>() +
+                         fmt(" %.2g %%", 100 * e.value("within_setup_variance_fraction", 0.0));
+            s += fmt("    not candidates (they name the setup; share of their variance within a "
+                     "setup): %s\n",
+                     names.c_str());
         }
     }
     if (m.contains("jitter")) {
