@@ -197,6 +197,16 @@ def comm_error(validation, out):
     plt.close(fig)
 
 
+def repeated_runs(folder):
+    """'name: w1, w2, w3 s' for each validation run repeated by model-node.sh (repeats/)."""
+    walls = {}
+    for path in sorted(glob.glob(os.path.join(folder, "repeats", "*.rep*.json"))):
+        name, k = os.path.basename(path)[:-len(".json")].rsplit(".rep", 1)
+        walls.setdefault(name, []).append((int(k), load(path)["wall_s"]))
+    return [f"{name[len('val_'):]} " + ", ".join(f"{w:.2f}" for _, w in sorted(v)) + " s"
+            for name, v in walls.items()]
+
+
 def fresh_source(args):
     """Which exchange figures costed the validation runs' shifts inline."""
     reports = [load(p) for p in sorted(glob.glob(os.path.join(args.dir, "runs", "val_*.json")))]
@@ -364,6 +374,14 @@ def markdown(model, validation, args, out):
             o = untuned(subdir)
             if in_use and o:
                 lines.append(line.format(o=o))
+        repeated = repeated_runs(args.dir)
+        o = untuned("first-runs")
+        if repeated and o:
+            lines.append("The shortest validation runs (under 3 s in the full job), run 3 times each and the "
+                         "run with the median wall time "
+                         "validated (chosen in session 34 after a 1.4 s run came out 11 % slower than its "
+                         "twin): " + "; ".join(repeated) + ". With each one's first run instead: "
+                         f"{o} (first-runs/validation.json).")
     if s["inline_comm_abs_error_per_interval"]:
         lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
                      f"measured gap; {fresh_source(args)}): median per-interval |error| "

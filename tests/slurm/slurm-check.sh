@@ -47,6 +47,14 @@ v = json.load(open(sys.argv[1]))
 n = v["summary"]["wall_abs_error"]["count"]
 assert n >= 10, f"validation.json holds {n} configurations, expected the main job's set"
 print(f"slurm-check: validation.json holds {n} configurations")
+# The short runs ran 3 times: one of each validated (not three), and their first runs apart.
+import glob, os
+d = os.path.dirname(sys.argv[1])
+reps = glob.glob(os.path.join(d, "repeats", "*.rep*.json"))
+assert len(reps) == 12, f"repeats/ holds {len(reps)} runs, expected 4 configurations x 3"
+first = json.load(open(os.path.join(d, "first-runs", "validation.json")))
+assert first["summary"]["wall_abs_error"]["count"] == n, "first-runs/ validates another set"
+assert "run 3 times each" in open(os.path.join(d, "validation.md")).read(), "validation.md: no repeats"
 PY
     echo "profile: $results/$host/machine.json"
     ;;
