@@ -169,7 +169,8 @@ shutil.copy(f"{folder}/{name}.rep{k}.json", dest)
 print(f"  {name}: {n} runs, wall " + ", ".join(f"{w:.2f}" for w, _ in walls) + f" s; run {k} kept")
 PY
     fi
-    val_s=$((val_s + SECONDS - t0))
+    # One run per configuration: what calibration is compared with.
+    val_s=$((val_s + (SECONDS - t0) / n))
 }
 
 stage "calibration round a: half-scale runs, 2 ranks (and 3 for time-sharing), all three grids"
@@ -217,10 +218,11 @@ validate_run --repeat "$short_repeats" 2 val_still_s1_sorted_overlap_r2 --setup 
     --steps "$vs_steps" --interval "$interval"
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
-# model_and_validate DIR RULE PROFILE [WEIGHTS]: calibrate with the compute-cost term rule RULE,
-# the time profile PROFILE and the fit weights WEIGHTS (relative unless given), predict, validate.
+# model_and_validate DIR RULE PROFILE [WEIGHTS [SHARING]]: calibrate with the compute-cost term
+# rule RULE, the time profile PROFILE and the fit weights WEIGHTS (relative unless given),
+# predict with the time-sharing overhead SHARING (per-step unless given), validate.
 model_and_validate() {
-    local dir=$1 rule=$2 profile=$3 weights=${4:-relative}
+    local dir=$1 rule=$2 profile=$3 weights=${4:-relative} sharing=${5:-per-step}
     mkdir -p "$dir"
     rm -f "$dir/refused.txt"
     stage "calibration ($rule, time profile $profile)"
@@ -236,7 +238,8 @@ model_and_validate() {
         # The model in use must predict everything; a comparison model may refuse a
         # configuration its calibration cannot reach (exit 2, its one line kept).
         "$build/bin/sphmodel" predict --model "$dir/model.json" --threads "$threads" \
-            --interval "$interval" --out "$dir/prediction_$name.json" "$@" 2>"$dir/$name.err" || {
+            --interval "$interval" --time-sharing-overhead "$sharing" \
+            --out "$dir/prediction_$name.json" "$@" 2>"$dir/$name.err" || {
             local rc=$?
             if [ "$dir" = "$out" ] || [ "$rc" -ne 2 ]; then
                 cat "$dir/$name.err" >&2
@@ -270,8 +273,10 @@ model_and_validate() {
 # The term rule in use was chosen (session 13) after comparing rules on three main jobs' runs,
 # and the Froude-time profile (session 16) after seeing the scale-1 dam-break errors: both are
 # tuned, and so are the relative fit weights (session 31, after seeing the 2-thread dam break's
-# errors). The same runs go through the models before them too: with absolute weights (session
-# 30's model), without the profile (session 15's) and with neither (the untuned rule).
+# errors), and the time-sharing overhead per step (session 34, after seeing the 3-rank still
+# tanks' errors). The same runs go through the models before them too: with absolute weights
+# (session 30's model), with the overhead as a ratio (session 33's), without the profile
+# (session 15's) and with neither (the untuned rule).
 model_and_validate "$out" levelled-one-se froude
 if [ "$short_repeats" -gt 1 ]; then
     # The same predictions against each repeated configuration's first run instead of its median.
@@ -285,6 +290,7 @@ if [ "$short_repeats" -gt 1 ]; then
         --out "$out/first-runs/validation.json" >/dev/null
 fi
 model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null
+model_and_validate "$out/ratio-overhead" levelled-one-se froude relative ratio >/dev/null
 model_and_validate "$out/no-profile" levelled-one-se none absolute >/dev/null
 model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute >/dev/null
 /usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" --validation-s "$val_s" \

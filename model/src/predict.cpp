@@ -44,7 +44,10 @@ struct Costs {
     bool overlap = false; // sph --overlap: ghosts and densities behind the interior columns
     // Time-sharing overhead measured on the app's own calibration runs, by load (ranks x
     // threads / cores); a load it did not run falls back to the exchange benchmark's.
-    std::map<double, double> sharing;
+    // Per load: seconds per step added on a shared core, and the ratio (session 33's model).
+    std::map<double, std::pair<double, double>> sharing;
+    bool sharing_ratio = false; // predict --time-sharing-overhead ratio
+
     // Step-to-step jitter of a rank's compute, standard deviation k sqrt(compute) (0: none
     // measured); within the cores a step lasts the expected maximum over the ranks.
     double jitter_k_sqrt_s = 0;
@@ -118,7 +121,8 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             c.jitter_k_sqrt_s = model.at("jitter").at("k_sqrt_s").get<double>();
         if (model.contains("time_sharing"))
             for (const auto &t : model.at("time_sharing"))
-                c.sharing[t.at("load").get<double>()] = t.at("overhead").get<double>();
+                c.sharing[t.at("load").get<double>()] = {t.at("overhead_s_per_step").get<double>(),
+                                                         t.at("overhead").get<double>()};
         if (model.contains("memory")) {
             const auto &mem = model.at("memory");
             // Per grid when the model has it (Cell+Sorted stores a copy, no pairs).
@@ -146,18 +150,26 @@ struct RankStep {
            idle_s = 0;
 };
 
-// The time-sharing overhead at this many processes x threads, and where it comes from.
-std::pair<double, const char *> sharing_overhead(const Costs &c, int processes,
-                                                 const ExchangeSet *set, double gap_s) {
+// The time-sharing overhead at this many processes x threads (a factor on a shared core's
+// summed compute, and seconds added to its step), and where it comes from.
+struct SharingOverhead {
+    double factor = 1.0, seconds_per_step = 0.0;
+    const char *source = "";
+};
+SharingOverhead sharing_overhead(const Costs &c, int processes, const ExchangeSet *set,
+                                 double gap_s) {
     if (processes <= c.cores)
-        return {1.0, "none (within the cores)"};
+        return {1.0, 0.0, "none (within the cores)"};
     const double load = static_cast<double>(processes) / c.cores;
     for (const auto &[l, o] : c.sharing)
         if (std::abs(l - load) < 1e-9)
-            return {o, "time-shared calibration run"};
+            return c.sharing_ratio
+                       ? SharingOverhead{o.second, 0.0, "time-shared calibration run (ratio)"}
+                       : SharingOverhead{1.0, o.first,
+                                         "time-shared calibration run (seconds per step)"};
     if (set)
-        return {ExchangeModel::round_overhead(*set, gap_s), "exchange benchmark"};
-    return {1.0, "none (no measurement at this load)"};
+        return {ExchangeModel::round_overhead(*set, gap_s), 0.0, "exchange benchmark"};
+    return {1.0, 0.0, "none (no measurement at this load)"};
 }
 
 // The calibration's measured / fitted compute at the Froude time of simulated time t (held at
@@ -247,7 +259,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         field.push_back(s.field);
     }
     // Per node, the time-sharing bound of its block of ranks (0 where within the cores).
-    auto node_step = [&](int n, double overhead) {
+    auto node_step = [&](int n, const SharingOverhead &overhead) {
         const auto &block = on_node[static_cast<std::size_t>(n)];
         std::vector<double> bc, bf;
         for (int r : block) {
@@ -255,9 +267,9 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
             bf.push_back(field[static_cast<std::size_t>(r)]);
         }
         const int K = static_cast<int>(block.size());
-        return time_shared_step(bc, bf, launcher_placement(K, threads, c.cores), threads, c.cores,
-                                overhead)
-            .step_s;
+        const SharedStep s = time_shared_step(bc, bf, launcher_placement(K, threads, c.cores),
+                                              threads, c.cores, overhead.factor);
+        return s.step_s + (s.shared_core ? overhead.seconds_per_step : 0.0);
     };
     // The compute since the shift before decides what a shift costs on this kind of machine
     // (exchange benchmark; ExchangeModel::app_shift_seconds): within the cores about half a
@@ -268,7 +280,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     double busy = 0;
     for (int n = 0; n < nodes; ++n) {
         if (node_shared(n)) {
-            busy = std::max(busy, node_step(n, 1.0));
+            busy = std::max(busy, node_step(n, SharingOverhead{}));
             continue;
         }
         for (int r : on_node[static_cast<std::size_t>(n)])
@@ -358,8 +370,8 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     for (int n = 0; n < nodes; ++n) {
         if (node_shared(n)) {
             const int K = static_cast<int>(on_node[static_cast<std::size_t>(n)].size());
-            shared_step = std::max(shared_step,
-                                   node_step(n, sharing_overhead(c, K * threads, set, gap).first));
+            shared_step =
+                std::max(shared_step, node_step(n, sharing_overhead(c, K * threads, set, gap)));
             continue;
         }
         for (int r : on_node[static_cast<std::size_t>(n)]) {
@@ -421,6 +433,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         throw UsageError("--overlap needs --grid sorted (as sph --overlap), not --grid " +
                          req.grid);
     c.overlap = req.overlap;
+    c.sharing_ratio = req.time_sharing_overhead == "ratio";
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
@@ -469,6 +482,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"jitter_k_sqrt_s", c.jitter_k_sqrt_s},
                            {"compute_time_profile", c.profile.empty() ? "none" : "froude"}};
     out["fluid_particles"] = probe.fluid_particles;
+    out["request"]["time_sharing_overhead"] = req.time_sharing_overhead;
     out["request"]["decompositions"] = req.decompositions;
     out["request"]["balance_weights"] = {
         {"fluid", req.weights.fluid}, {"walls", req.weights.walls}, {"source", req.weights.source}};
@@ -677,7 +691,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                        ? nullptr
                                        : &c.exchange.set_for(per_node, req.threads, c.cores),
                                    0)
-                      .second},
+                      .source},
                  {"wall_s", wall},
                  {"totals",
                   {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},

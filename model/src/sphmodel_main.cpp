@@ -122,6 +122,12 @@ int run(int argc, char **argv) {
     pre->add_flag("--overlap", q.overlap,
                   "As sph --overlap (Cell+Sorted only): ghost and density exchanges behind the "
                   "interior columns");
+    pre->add_option("--time-sharing-overhead", q.time_sharing_overhead,
+                    "Above the cores, the calibration's time-sharing overhead added per step on a "
+                    "shared core (per-step) or as a factor on its summed compute (ratio, the "
+                    "model before session 34)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"per-step", "ratio"}));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

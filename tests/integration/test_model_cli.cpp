@@ -131,7 +131,11 @@ TEST(ModelCli, CalibratePredictValidate) {
     const auto &ts = m["time_sharing"][0];
     EXPECT_DOUBLE_EQ(ts["overhead_mean"].get<double>(), ts["runs"][0]["overhead"].get<double>());
     EXPECT_DOUBLE_EQ(ts["overhead_min"].get<double>(), ts["overhead_max"].get<double>());
-    EXPECT_EQ(ts["uses"].get<std::string>(), "median");
+    EXPECT_DOUBLE_EQ(ts["overhead_s_per_step_mean"].get<double>(),
+                     ts["runs"][0]["overhead_s_per_step"].get<double>());
+    EXPECT_DOUBLE_EQ(ts["overhead_s_per_step"].get<double>(),
+                     ts["runs"][0]["overhead_s_per_step"].get<double>());
+    EXPECT_EQ(ts["uses"].get<std::string>(), "median of overhead_s_per_step");
     // The launcher put the time-shared ranks where the model assumes they are (round-robin
     // over the cores above them, each on its own core within them).
     const sphperf::testing::Run nproc = run("nproc");
@@ -154,9 +158,33 @@ TEST(ModelCli, CalibratePredictValidate) {
                   sphperf::model::launcher_placement(c["ranks"].get<int>(), 1,
                                                      p["request"]["cores"].get<int>()));
         EXPECT_EQ(c["time_sharing_source"].get<std::string>(), c["ranks"].get<int>() == 3
-                                                                   ? "time-shared calibration run"
+                                                                   ? "time-shared calibration run "
+                                                                     "(seconds per step)"
                                                                    : "none (within the cores)");
     }
+    // Above the cores the overhead is added per step on a shared core, or (the model before)
+    // multiplies its summed compute: on the still tank at 3 ranks, where core 0 serves two busy
+    // ranks every step, the two walls differ exactly by that: (W - steps a) f = W_ratio.
+    double walls[2] = {};
+    for (int k = 0; k < 2; ++k) {
+        const std::string form = k == 0 ? "per-step" : "ratio";
+        const auto out = f.dir / ("pred_sharing_" + form + ".json");
+        const sphperf::testing::Run rs =
+            run(bin("sphmodel") + " predict --model " + f.model.string() +
+                " --setup still --scale 0.5 --ranks 3 --steps 40 --interval 10 "
+                "--time-sharing-overhead " +
+                form + " --out " + out.string());
+        ASSERT_EQ(rs.code, 0) << rs.err;
+        const auto c = load(out)["configurations"][0];
+        EXPECT_EQ(c["time_sharing_source"].get<std::string>(),
+                  "time-shared calibration run (" +
+                      std::string(k == 0 ? "seconds per step" : "ratio") + ")");
+        walls[k] = c["wall_s"].get<double>();
+    }
+    EXPECT_NE(walls[0], walls[1]);
+    EXPECT_NEAR((walls[0] - 40 * ts["overhead_s_per_step"].get<double>()) *
+                    ts["overhead"].get<double>(),
+                walls[1], 1e-9 * walls[1]);
     // Idle onset (thesis 3.7.3): each rank's predicted first busy step lies within the report
     // interval in which the real 3-rank run's rank first held a field particle; null if never.
     {

@@ -119,6 +119,9 @@ struct PredictRequest {
     // sph --overlap (Cell+Sorted): the ghost and density exchanges run behind the interior
     // columns; each rank pays its received payloads' one-way Hockney time (model/README.md).
     bool overlap = false;
+    // The time-sharing overhead the calibration measured, added per step on a shared core
+    // (per-step) or as a factor on its summed compute (ratio, the model before session 34).
+    std::string time_sharing_overhead = "per-step";
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);
