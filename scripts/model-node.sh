@@ -116,6 +116,11 @@ calibrate_round() { # calibrate_round LABEL
     # 1.057/1.079), and Cell+Sorted's run is the cheapest (0.23 s against 1.0 s).
     sph 3 "cal_still_s0.5_sorted_r3_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
+    # And at 2 ranks per core (the balanced 4-rank dam breaks' load): without it that load took
+    # the exchange benchmark's ratio, 1.13-1.29 where the app paid about 1.0 (model/README.md,
+    # session 34).
+    sph 4 "cal_still_s0.5_sorted_r4_$1" --setup still --scale 0.5 --grid sorted \
+        --steps "$cs_steps" --interval "$c_interval"
     # One rank x 2 threads (the cost at 2 threads is fitted on its own). On this VM a 2-thread
     # run was bimodal (model/README.md, session 16): the inter-core latency of the two vCPUs,
     # which switches in spells; since each thread keeps one block of cells (session 21) the far
