@@ -47,7 +47,6 @@ struct Costs {
     // Per load: seconds per step added on a shared core, and the ratio (session 33's model).
     std::map<double, std::pair<double, double>> sharing;
     bool sharing_ratio = false; // predict --time-sharing-overhead ratio
-
     // Step-to-step jitter of a rank's compute, standard deviation k sqrt(compute) (0: none
     // measured); within the cores a step lasts the expected maximum over the ranks.
     double jitter_k_sqrt_s = 0;
