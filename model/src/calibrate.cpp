@@ -553,7 +553,7 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
                   "flops reach at most " +
                   pct(flop_fraction) +
                   " of the FMA peak: the time goes to the latency and throughput of the "
-                  "arithmetic (sqrt, division) and to masked lanes";
+                  "arithmetic (sqrt, division) and to packing the in-range candidates";
     else
         verdict = "neither: the SPH kernel reaches at most " +
                   pct(std::max(flop_fraction, byte_fraction)) +

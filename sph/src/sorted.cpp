@@ -2,7 +2,12 @@
 
 #include <omp.h>
 
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+#include <immintrin.h>
+#endif
+
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -213,6 +218,7 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
         v->resize(n + west + east);
     copy_fields(p, west, west + n);
+    mark_remote_columns();
     moves_ = n + west + east; // every particle is filed anew each step
     // Density and pressure are copied by refresh_density once they are final for the pass
     // that reads them (the density pass reads neither).
@@ -260,6 +266,7 @@ void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
         sort_cells_by_id(p, cells - rows, cells);
     copy_fields(p, 0, west_);
     copy_fields(p, west_ + local_, west_ + local_ + east_);
+    mark_remote_columns();
 }
 
 void CellSorted::refresh_density(const Particles &p) {
@@ -285,12 +292,32 @@ void CellSorted::refresh_ghost_density(const Particles &p) {
 }
 
 CellSorted::View CellSorted::view() const {
-    return {x_.data(),    y_.data(),     vx_.data(),
-            vy_.data(),   rho_.data(),   p_over_rho2_.data(),
-            mass_.data(), fluid_.data(), remote_.data(),
-            orig_.data(), start_.data(), cols_,
-            rows_,        owned_,        blocks_.data(),
-            threads_};
+    return {x_.data(),
+            y_.data(),
+            vx_.data(),
+            vy_.data(),
+            rho_.data(),
+            p_over_rho2_.data(),
+            mass_.data(),
+            fluid_.data(),
+            remote_.data(),
+            orig_.data(),
+            start_.data(),
+            cols_,
+            rows_,
+            owned_,
+            blocks_.data(),
+            threads_,
+            remote_columns_.data()};
+}
+
+void CellSorted::mark_remote_columns() {
+    remote_columns_.assign(static_cast<std::size_t>(cols_), 0);
+    const auto rows = static_cast<std::size_t>(rows_);
+    for (std::size_t c = 0; c < remote_columns_.size(); ++c)
+        remote_columns_[c] =
+            std::any_of(remote_.begin() + start_[c * rows],
+                        remote_.begin() + start_[(c + 1) * rows], [](double r) { return r > 0; });
 }
 
 namespace {
@@ -302,8 +329,9 @@ constexpr double tiny = 1e-150;
 
 constexpr int lanes = 8; // one AVX-512 vector of doubles; fixed, so sums do not depend on ISA
 
-// A sum split over a fixed number of lanes by position within each range, then added in a
-// fixed tree: deterministic for given range contents, and the inner loop vectorises.
+// A sum split over a fixed number of lanes by position within each range (or packed list),
+// then added in a fixed tree: deterministic for given range contents, and the inner loop
+// vectorises.
 struct LaneSum {
     double v[lanes] = {};
     double total() const {
@@ -332,6 +360,151 @@ void for_each_candidate(const CellSorted::View &v, int col, int row, Body &&body
     }
 }
 
+// What a pack counts besides packing: nothing (the forces), the in-range candidates (the
+// density pass, whose counts are the run's pair counts), or also their remote share (the same
+// in a column that holds particles this rank does not own); and whether only fluid candidates
+// interact (a wall particle's density pass).
+enum class Counted { no, in_range, remote };
+enum class Partners { all, fluid };
+
+template <Counted count, Partners partners>
+void pack_range_portable(const CellSorted::View &v, double xi, double yi, double r2max,
+                         std::size_t b, std::size_t e, PackedCandidates &out) {
+    // Local pointers: the stores below could otherwise alias the vectors' and the view's own.
+    const double *x = v.x, *y = v.y, *fluid = v.fluid, *far = v.remote;
+    std::uint32_t *index = out.index.data();
+    double *sx = out.dx.data(), *sy = out.dy.data();
+    std::size_t n = out.size;
+    std::uint64_t in_range = 0, remote = 0;
+    for (std::size_t j = b; j < e; ++j) {
+        const double dx = xi - x[j], dy = yi - y[j];
+        const double d2 = dx * dx + dy * dy;
+        const bool in = d2 < r2max && (partners == Partners::all || fluid[j] > 0);
+        if constexpr (count != Counted::no)
+            in_range += in;
+        if constexpr (count == Counted::remote)
+            remote += in && far[j] > 0;
+        // Written always, kept by advancing: no branch on the distance.
+        index[n] = static_cast<std::uint32_t>(j);
+        sx[n] = dx;
+        sy[n] = dy;
+        n += in && d2 > 0;
+    }
+    out.size = n;
+    out.in_range += in_range;
+    out.remote += remote;
+}
+
+template <Counted count, Partners partners>
+void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, std::size_t b,
+                std::size_t e, PackedCandidates &out) {
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+    // Eight candidates at a time: the kept lanes compressed to the front of a register and
+    // stored whole (the next store overwrites the rest), the tail by masked loads; counts in
+    // vector lanes, added up once. GCC 12 vectorises neither the compression nor the tail.
+    const double *x = v.x, *y = v.y, *fluid = v.fluid, *far = v.remote;
+    std::uint32_t *index = out.index.data();
+    double *sx = out.dx.data(), *sy = out.dy.data();
+    const __m512d x0 = _mm512_set1_pd(xi), y0 = _mm512_set1_pd(yi), r2 = _mm512_set1_pd(r2max),
+                  zero = _mm512_setzero_pd();
+    const __m512i one = _mm512_set1_epi64(1);
+    // The in-range count is the packed ones plus those at distance 0 (the particle itself).
+    __m512i at_zero = _mm512_setzero_si512(), remote = _mm512_setzero_si512();
+    const std::size_t packed_before = out.size;
+    __m256i position = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(b)),
+                                        _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    const __m256i eight = _mm256_set1_epi32(8);
+    std::size_t n = out.size;
+    for (std::size_t j = b; j < e; j += 8) {
+        const __mmask8 valid =
+            e - j >= 8 ? __mmask8{0xff} : static_cast<__mmask8>((1u << (e - j)) - 1);
+        const __m512d dx = _mm512_sub_pd(x0, _mm512_maskz_loadu_pd(valid, x + j));
+        const __m512d dy = _mm512_sub_pd(y0, _mm512_maskz_loadu_pd(valid, y + j));
+        const __m512d d2 = _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dx, dx));
+        __mmask8 in = _mm512_mask_cmp_pd_mask(valid, d2, r2, _CMP_LT_OQ);
+        if constexpr (partners == Partners::fluid)
+            in = _mm512_mask_cmp_pd_mask(in, _mm512_maskz_loadu_pd(valid, fluid + j), zero,
+                                         _CMP_GT_OQ);
+        if constexpr (count == Counted::remote) {
+            const __mmask8 in_far = _mm512_mask_cmp_pd_mask(
+                in, _mm512_maskz_loadu_pd(valid, far + j), zero, _CMP_GT_OQ);
+            remote = _mm512_mask_add_epi64(remote, in_far, remote, one);
+        }
+        const __mmask8 keep = _mm512_mask_cmp_pd_mask(in, d2, zero, _CMP_GT_OQ);
+        if constexpr (count != Counted::no)
+            at_zero = _mm512_mask_add_epi64(at_zero, _kandn_mask8(keep, in), at_zero, one);
+        _mm256_storeu_si256(reinterpret_cast<__m256i *>(index + n),
+                            _mm256_maskz_compress_epi32(keep, position));
+        _mm512_storeu_pd(sx + n, _mm512_maskz_compress_pd(keep, dx));
+        _mm512_storeu_pd(sy + n, _mm512_maskz_compress_pd(keep, dy));
+        n += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(keep)));
+        position = _mm256_add_epi32(position, eight);
+    }
+    out.size = n;
+    if constexpr (count != Counted::no)
+        out.in_range +=
+            (n - packed_before) + static_cast<std::uint64_t>(_mm512_reduce_add_epi64(at_zero));
+    if constexpr (count == Counted::remote)
+        out.remote += static_cast<std::uint64_t>(_mm512_reduce_add_epi64(remote));
+#else
+    pack_range_portable<count, partners>(v, xi, yi, r2max, b, e, out);
+#endif
+}
+
+// Packs the candidates of the 3 x 3 cells around cell (col, row) that interact with particle
+// `self` (see PackedCandidates), padded to whole vectors.
+template <Counted count, Partners partners>
+void pack_neighbourhood(const CellSorted::View &v, int col, int row, std::size_t self, double r2max,
+                        PackedCandidates &out) {
+    constexpr int reach = CellSorted::rows_per_cell; // rows within 3h
+    const int r0 = std::max(row - reach, 0), r1 = std::min(row + reach, v.rows - 1);
+    const int c0 = std::max(col - 1, 0), c1 = std::min(col + 1, v.cols - 1);
+    std::size_t candidates = 0;
+    for (int c = c0; c <= c1; ++c)
+        candidates += v.start[c * v.rows + r1 + 1] - v.start[c * v.rows + r0];
+    // Room for every candidate, the vector stores past the last one and the padding.
+    if (out.index.size() < candidates + lanes) {
+        const std::size_t room = std::bit_ceil(candidates + lanes);
+        out.index.resize(room);
+        out.dx.resize(room);
+        out.dy.resize(room);
+    }
+    out.size = 0;
+    out.in_range = out.remote = 0;
+    for (int c = c0; c <= c1; ++c) {
+        const std::size_t b = v.start[c * v.rows + r0], e = v.start[c * v.rows + r1 + 1];
+        if (count == Counted::remote && !v.remote_columns[c])
+            pack_range<Counted::in_range, partners>(v, v.x[self], v.y[self], r2max, b, e, out);
+        else
+            pack_range<count, partners>(v, v.x[self], v.y[self], r2max, b, e, out);
+    }
+    out.padded = (out.size + lanes - 1) / lanes * lanes;
+    for (std::size_t q = out.size; q < out.padded; ++q) {
+        out.index[q] = static_cast<std::uint32_t>(self);
+        out.dx[q] = out.dy[q] = 0;
+    }
+}
+
+} // namespace
+
+void pack_in_range_portable(const CellSorted::View &v, double xi, double yi, double r2max,
+                            bool fluid_only, std::size_t b, std::size_t e, PackedCandidates &out) {
+    if (fluid_only)
+        pack_range_portable<Counted::remote, Partners::fluid>(v, xi, yi, r2max, b, e, out);
+    else
+        pack_range_portable<Counted::remote, Partners::all>(v, xi, yi, r2max, b, e, out);
+}
+
+void pack_in_range(const CellSorted::View &v, double xi, double yi, double r2max, bool fluid_only,
+                   std::size_t b, std::size_t e, PackedCandidates &out) {
+    if (fluid_only)
+        pack_range<Counted::remote, Partners::fluid>(v, xi, yi, r2max, b, e, out);
+    else
+        pack_range<Counted::remote, Partners::all>(v, xi, yi, r2max, b, e, out);
+}
+
+namespace {
+
 // This thread's cells of the view (inside a parallel region).
 std::pair<int, int> thread_cells(const CellSorted::View &v) {
     const auto [c0, c1] =
@@ -339,12 +512,14 @@ std::pair<int, int> thread_cells(const CellSorted::View &v) {
     return {static_cast<int>(c0), static_cast<int>(c1)};
 }
 
-// Runs per_particle(view, sorted index, col, row) for every owned particle of the columns,
-// each thread over its block of cells (balanced by the grid: the water is not spread evenly).
+// Runs per_particle(sorted index, col, row, scratch) for every owned particle of the columns,
+// each thread over its block of cells (balanced by the grid: the water is not spread evenly)
+// with its own scratch.
 template <class F>
 void for_each_owned(const CellSorted::View &v, ColumnSet columns, F &&per_particle) {
 #pragma omp parallel
     {
+        PackedCandidates scratch;
         const auto [c0, c1] = thread_cells(v);
         for (int cell = c0; cell < c1; ++cell) {
             const int col = cell / v.rows, row = cell % v.rows;
@@ -352,7 +527,7 @@ void for_each_owned(const CellSorted::View &v, ColumnSet columns, F &&per_partic
                 continue;
             for (std::size_t s = v.start[cell]; s < v.start[cell + 1]; ++s)
                 if (v.orig[s] < v.owned)
-                    per_particle(s, col, row);
+                    per_particle(s, col, row, scratch);
         }
     }
 }
@@ -367,9 +542,10 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
-    double interactions = 0, remote = 0; // exact: integers far below 2^53
+    std::uint64_t interactions = 0, remote = 0;
 #pragma omp parallel reduction(+ : interactions, remote)
     {
+        PackedCandidates nbr;
         const auto [c0, c1] = thread_cells(v);
         for (int cell = c0; cell < c1; ++cell) {
             const int col = cell / v.rows, row = cell % v.rows;
@@ -378,24 +554,29 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
             for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
                 if (v.orig[i] >= v.owned)
                     continue;
-                const double xi = v.x[i], yi = v.y[i], vxi = v.vx[i], vyi = v.vy[i];
-                LaneSum drho, inter, rem;
-                // A fluid particle interacts with every particle within 3h, itself included here
-                // (subtracted below: its own term is 0, its separation and velocity difference
-                // being 0); a wall particle with fluid particles only, so not with itself. Two
-                // loops, so that neither tests in every lane what is known per particle.
-                auto pass = [&](auto fluid_i) {
-                    for_each_candidate(v, col, row, [&](std::size_t j, int l) {
-                        const double dx = xi - v.x[j], dy = yi - v.y[j];
-                        const double d2 = dx * dx + dy * dy;
-                        double in;
-                        if constexpr (fluid_i)
-                            in = d2 < r2max ? 1.0 : 0.0;
-                        else
-                            in = (d2 < r2max) & (v.fluid[j] > 0) ? 1.0 : 0.0;
-                        const double act = d2 > 0 ? in : 0.0; // coincident images have no direction
-                        // Neighbours by the end of the step, the rate at separations `back` earlier
-                        // (physics.hpp continuity_term).
+                // A fluid particle interacts with every particle within 3h, itself included in
+                // the count (subtracted below; its own term is 0); a wall particle with fluid
+                // particles only, so not with itself.
+                const bool fluid_i = v.fluid[i] > 0;
+                if (fluid_i)
+                    pack_neighbourhood<Counted::remote, Partners::all>(v, col, row, i, r2max, nbr);
+                else
+                    pack_neighbourhood<Counted::remote, Partners::fluid>(v, col, row, i, r2max,
+                                                                         nbr);
+                const double vxi = v.vx[i], vyi = v.vy[i];
+                const std::uint32_t *idx = nbr.index.data();
+                const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+                LaneSum drho;
+                for (std::size_t q = 0; q < nbr.padded; q += lanes) {
+#pragma omp simd
+                    for (int l = 0; l < lanes; ++l) {
+                        const std::uint32_t j = idx[q + l];
+                        const double dx = sx[q + l], dy = sy[q + l];
+                        // 0 for the padding, which sits at distance 0 (coincident images have
+                        // no direction either, and are not packed).
+                        const double act = dx * dx + dy * dy > 0 ? 1.0 : 0.0;
+                        // Neighbours by the end of the step, the rate at separations `back`
+                        // earlier (physics.hpp continuity_term).
                         const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
                         const double mx = dx - back * dvx, my = dy - back * dvy;
                         const double r =
@@ -403,22 +584,15 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                         const double f =
                             k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
                         drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
-                        inter.v[l] += in;
-                        rem.v[l] += in * v.remote[j];
-                    });
-                };
-                const bool fluid_i = v.fluid[i] > 0;
-                if (fluid_i)
-                    pass(std::true_type{});
-                else
-                    pass(std::false_type{});
+                    }
+                }
                 p.drho[v.orig[i]] = drho.total();
-                interactions += inter.total() - (fluid_i ? 1.0 : 0.0);
-                remote += rem.total();
+                interactions += nbr.in_range - (fluid_i ? 1 : 0);
+                remote += nbr.remote;
             }
         }
     }
-    return {static_cast<std::uint64_t>(interactions), static_cast<std::uint64_t>(remote)};
+    return {interactions, remote};
 }
 
 void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
@@ -431,37 +605,46 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
     const double h = k.h, eta2 = 0.01 * h * h, visc_coef = -2 * phys.alpha * phys.c0 * h;
-    for_each_owned(v, columns, [&](std::size_t i, int col, int row) {
+    for_each_owned(v, columns, [&](std::size_t i, int col, int row, PackedCandidates &nbr) {
         const std::uint32_t oi = v.orig[i];
         if (v.fluid[i] == 0) { // wall particles do not move
             p.ax[oi] = 0;
             p.ay[oi] = 0;
             return;
         }
-        const double xi = v.x[i], yi = v.y[i], vxi = v.vx[i], vyi = v.vy[i];
+        // i is fluid: every j interacts.
+        pack_neighbourhood<Counted::no, Partners::all>(v, col, row, i, r2max, nbr);
+        const double vxi = v.vx[i], vyi = v.vy[i];
         const double rhoi = v.rho[i], pri = v.p_over_rho2[i];
+        const std::uint32_t *idx = nbr.index.data();
+        const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
         LaneSum ax, ay;
-        for_each_candidate(v, col, row, [&](std::size_t j, int l) {
-            const double dx = xi - v.x[j], dy = yi - v.y[j];
-            const double d2 = dx * dx + dy * dy;
-            // i is fluid: every j interacts. A multiplied mask, not a select: GCC turns the
-            // select into a conditional store here, which does not vectorise; every term is
-            // finite, so 0 x term adds nothing.
-            const double mask = (d2 < r2max) & (d2 > 0) ? 1.0 : 0.0; // d2 > 0: not i itself
-            const double r = std::sqrt(d2 + tiny);
-            const double vdotr = (vxi - v.vx[j]) * dx + (vyi - v.vy[j]) * dy;
-            // One division for three quotients, 1/r, 1/(r^2 + eta^2) and 1/(rho_i + rho_j):
-            // divisions and the square root are what this loop waits on.
-            const double dv = (d2 + eta2) * (rhoi + v.rho[j]);
-            const double inv = 1.0 / (r * dv);
-            // Monaghan's viscosity for approaching pairs only (vdotr < 0): clamping vdotr
-            // rather than branching keeps the loop branch-free; receding pairs get 0.
-            const double visc = visc_coef * std::min(vdotr, 0.0) * (r * inv);
-            const double f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) * (dv * inv);
-            const double coef = v.mass[j] * (pri + v.p_over_rho2[j] + visc);
-            ax.v[l] += mask * (-coef * f * dx);
-            ay.v[l] += mask * (-coef * f * dy);
-        });
+        for (std::size_t q = 0; q < nbr.padded; q += lanes) {
+#pragma omp simd
+            for (int l = 0; l < lanes; ++l) {
+                const std::uint32_t j = idx[q + l];
+                const double dx = sx[q + l], dy = sy[q + l];
+                const double d2 = dx * dx + dy * dy;
+                // 0 for the padding, at distance 0. A multiplied mask, not a select: GCC turns
+                // the select into a conditional store here, which does not vectorise; every
+                // term is finite, so 0 x term adds nothing.
+                const double mask = d2 > 0 ? 1.0 : 0.0;
+                const double r = std::sqrt(d2 + tiny);
+                const double vdotr = (vxi - v.vx[j]) * dx + (vyi - v.vy[j]) * dy;
+                // One division for three quotients, 1/r, 1/(r^2 + eta^2) and
+                // 1/(rho_i + rho_j): divisions and the square root are what this loop waits on.
+                const double dv = (d2 + eta2) * (rhoi + v.rho[j]);
+                const double inv = 1.0 / (r * dv);
+                // Monaghan's viscosity for approaching pairs only (vdotr < 0): clamping vdotr
+                // rather than branching keeps the loop branch-free; receding pairs get 0.
+                const double visc = visc_coef * std::min(vdotr, 0.0) * (r * inv);
+                const double f =
+                    k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) * (dv * inv);
+                const double coef = v.mass[j] * (pri + v.p_over_rho2[j] + visc);
+                ax.v[l] += mask * (-coef * f * dx);
+                ay.v[l] += mask * (-coef * f * dy);
+            }
+        }
         p.ax[oi] = ax.total();
         p.ay[oi] = ay.total() - phys.gravity;
     });
@@ -474,7 +657,7 @@ void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {
     const double r2max = phys.cell_size() * phys.cell_size();
     const double w0 = k.value(0.0);
     std::vector<double> filtered(p.owned(), 0.0);
-    for_each_owned(v, ColumnSet{}, [&](std::size_t i, int col, int row) {
+    for_each_owned(v, ColumnSet{}, [&](std::size_t i, int col, int row, PackedCandidates &) {
         if (v.fluid[i] == 0)
             return; // wall densities follow the continuity equation
         const double xi = v.x[i], yi = v.y[i];

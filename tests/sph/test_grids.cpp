@@ -188,6 +188,84 @@ TEST(CellSorted, DriversMatchTheStoredListDrivers) {
         EXPECT_NEAR(q.rho[i], p.rho[i], 1e-12 * p.rho[i]) << i;
 }
 
+// The packing of in-range candidates (vectorised where the build has AVX-512) against a plain
+// filter of the same range: the same positions in the same order, the same separations to the
+// bit, and the same counts; with coincident particles (in range, not packed), ghosts (remote)
+// and walls (not packed for a wall's density pass), through whole vectors and tails.
+TEST(CellSorted, PackedCandidatesAreTheFilteredRangeInOrder) {
+    Particles p = random_configuration(21, 700, 200);
+    p.x[10] = p.x[11]; // two owned particles at one position
+    p.y[10] = p.y[11];
+    CellSorted g;
+    g.update(p, window);
+    const CellSorted::View v = g.view();
+    const double r2 = cell * cell;
+    std::size_t packed = 0, coincident = 0, remote = 0, tails = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+        if (v.orig[i] >= v.owned)
+            continue;
+        const int cells = v.cols * v.rows;
+        const int cell_i = static_cast<int>(std::upper_bound(v.start, v.start + cells + 1,
+                                                             static_cast<std::uint32_t>(i)) -
+                                            v.start) -
+                           1;
+        const int col = cell_i / v.rows, row = cell_i % v.rows;
+        const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
+        const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
+        for (int c = std::max(col - 1, 0); c <= std::min(col + 1, v.cols - 1); ++c) {
+            const std::size_t b = v.start[c * v.rows + r0], e = v.start[c * v.rows + r1 + 1];
+            tails += (e - b) % 8 != 0;
+            for (const bool fluid_only : {false, true}) {
+                PackedCandidates fast, plain;
+                for (auto *pc : {&fast, &plain}) {
+                    pc->index.assign(e - b + 8, 0);
+                    pc->dx.assign(e - b + 8, 0);
+                    pc->dy.assign(e - b + 8, 0);
+                }
+                pack_in_range(v, v.x[i], v.y[i], r2, fluid_only, b, e, fast);
+                pack_in_range_portable(v, v.x[i], v.y[i], r2, fluid_only, b, e, plain);
+                // The filter written out.
+                std::vector<std::uint32_t> expected;
+                std::uint64_t in_range = 0, far = 0;
+                for (std::size_t j = b; j < e; ++j) {
+                    const double dx = v.x[i] - v.x[j], dy = v.y[i] - v.y[j];
+                    const double d2 = dx * dx + dy * dy;
+                    if (d2 >= r2 || (fluid_only && v.fluid[j] == 0))
+                        continue;
+                    ++in_range;
+                    far += v.remote[j] > 0;
+                    if (d2 > 0)
+                        expected.push_back(static_cast<std::uint32_t>(j));
+                    else
+                        coincident += j != i;
+                }
+                ASSERT_EQ(fast.size, expected.size()) << i;
+                ASSERT_EQ(plain.size, expected.size()) << i;
+                for (std::size_t q = 0; q < expected.size(); ++q) {
+                    ASSERT_EQ(fast.index[q], expected[q]) << i;
+                    ASSERT_EQ(plain.index[q], expected[q]) << i;
+                    const double dx = v.x[i] - v.x[expected[q]], dy = v.y[i] - v.y[expected[q]];
+                    EXPECT_EQ(fast.dx[q], dx);
+                    EXPECT_EQ(fast.dy[q], dy);
+                    EXPECT_EQ(plain.dx[q], dx);
+                    EXPECT_EQ(plain.dy[q], dy);
+                }
+                EXPECT_EQ(fast.in_range, in_range) << i;
+                EXPECT_EQ(plain.in_range, in_range) << i;
+                EXPECT_EQ(fast.remote, far) << i;
+                EXPECT_EQ(plain.remote, far) << i;
+                packed += expected.size();
+                remote += far;
+            }
+        }
+    }
+    // The cases above all occurred.
+    EXPECT_GT(packed, 10000u);
+    EXPECT_GT(coincident, 0u);
+    EXPECT_GT(remote, 100u);
+    EXPECT_GT(tails, 100u);
+}
+
 // The branch-free kernel the vectorised loops use is the quintic kernel to rounding (the
 // compiler may fuse multiply-adds differently in the two, so not always to the last bit).
 TEST(CellSorted, BranchFreeKernelIsTheQuinticKernel) {

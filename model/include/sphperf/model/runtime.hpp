@@ -30,12 +30,13 @@ inline constexpr InteractionCost interaction_costs[] = {
     {"momentum", 43.8, 60.0},
     {"shepard filter (every 30 steps)", 0.8, 1.5},
 };
-// Cell+Sorted (sph/src/sorted.cpp): no search and no stored pairs, but every candidate of the
-// three column ranges (2.15 per interaction: 3 x 2.25 cells against a disc of one cell radius)
-// runs the whole branch-free term, masked. Counted per candidate, times 2.15.
+// Cell+Sorted (sph/src/sorted.cpp): no search and no stored pairs; each pass packs a
+// particle's in-range candidates of the three column ranges (2.15 candidates per interaction:
+// 3 x 2.25 cells against a disc of one cell radius; distance and masks, 7 flops each) and runs
+// the branch-free term over the packed pairs only.
 inline constexpr InteractionCost sorted_interaction_costs[] = {
-    {"continuity over candidates (2.15 per interaction)", 105.4, 103.2},
-    {"momentum over candidates", 137.6, 120.4},
+    {"continuity: pack (2.15 candidates per interaction), term per pair", 61.05, 98.4},
+    {"momentum: pack, term per pair", 75.05, 114.4},
     {"shepard filter (every 30 steps)", 2.9, 2.3},
 };
 // The table of a grid scheme.

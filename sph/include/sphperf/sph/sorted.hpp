@@ -6,8 +6,9 @@
 // three ranges, each (2 rows_per_cell + 1) / rows_per_cell cells tall instead of 3. No pair is
 // stored: density, forces and the Shepard filter walk the ranges directly, each particle's sum by
 // one thread in a fixed order (columns west to east, rows bottom to top, ids within a cell, and a
-// fixed 8-lane split of each range). The result therefore does not depend on the thread count, the
-// rank count, or where the arrays sit in memory.
+// fixed 8-lane split of the in-range candidates so ordered, or of each range for Shepard). The
+// result therefore does not depend on the thread count, the rank count, or where the arrays sit
+// in memory.
 #include "sphperf/sph/config.hpp"
 #include "sphperf/sph/grid.hpp"
 #include "sphperf/sph/kernel.hpp"
@@ -51,9 +52,10 @@ public:
         const std::uint32_t *orig;    // sorted position -> index in Particles
         const std::uint32_t *start;   // cell -> first sorted position; start[cells] = size
         int cols, rows;
-        std::size_t owned;           // a sorted particle is owned when orig < owned
-        const std::uint32_t *blocks; // thread t's cells: [blocks[t], blocks[t + 1])
-        int threads;                 // the team size the blocks were cut for
+        std::size_t owned;                  // a sorted particle is owned when orig < owned
+        const std::uint32_t *blocks;        // thread t's cells: [blocks[t], blocks[t + 1])
+        int threads;                        // the team size the blocks were cut for
+        const std::uint8_t *remote_columns; // 1 where a column holds particles not owned
     };
 
     void update(const Particles &p, const CellWindow &w) { update(p, w, 0, 0); } // sort, copy
@@ -110,6 +112,8 @@ private:
     // between cores every pass; this VM's inter-core latency switches between about 80 and
     // 350 ns (sph/README.md).
     void cut_blocks();
+    // remote_columns_ anew: the density pass counts remote partners in these columns only.
+    void mark_remote_columns();
     // This thread's sorted positions (inside a parallel region): those of its block's cells.
     std::pair<std::size_t, std::size_t> thread_positions() const;
     CellWindow window_;
@@ -122,6 +126,7 @@ private:
     std::vector<std::uint64_t> block_costs_; // cut_blocks': each thread's share of them
     int threads_ = 0;
     std::vector<std::uint32_t> order_, reorder_starts_; // reorder's
+    std::vector<std::uint8_t> remote_columns_;
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
 };
@@ -177,6 +182,32 @@ concept OverlapGrid = requires(G g, const G cg, const Particles &p, const CellWi
     g.refresh_ghost_density(p);
     { cg.columns_without_ghosts() } -> std::same_as<ColumnSet>;
 };
+
+// One particle's candidates within the support, packed in candidate order (columns west to
+// east, rows bottom to top, ids within a cell): their sorted positions and separations from
+// the particle, then padding to whole vectors (position `self`, separation 0, which every
+// kernel masks out as it masks the particle itself). The force and density loops then run over
+// the pairs that interact only: about half of the 3 x (2 rows_per_cell + 1) / rows_per_cell
+// cells' candidates lie beyond 3h, and the loops are bound by their arithmetic, which a masked
+// lane pays in full. A per-thread scratch, grown once and reused.
+struct PackedCandidates {
+    std::vector<std::uint32_t> index;
+    std::vector<double> dx, dy;
+    std::size_t size = 0;       // packed candidates, without the padding
+    std::size_t padded = 0;     // with it: a multiple of the vector length
+    std::uint64_t in_range = 0; // candidates within the support (with those at distance 0)
+    std::uint64_t remote = 0;   // of those, the ones this rank does not own
+};
+
+// Appends to `out` the candidates at sorted positions [b, e) within distance^2 r2max of
+// (xi, yi) and not at it (distance 0: the particle itself, or a coincident image), and only
+// fluid ones with `fluid_only`; counts the in-range ones (distance 0 included) and their remote
+// share. `out`'s arrays must hold out.size + (e - b) + 8 entries. Vectorised with AVX-512 where
+// the build has it; pack_in_range_portable is the plain loop, the same result (tested).
+void pack_in_range(const CellSorted::View &v, double xi, double yi, double r2max, bool fluid_only,
+                   std::size_t b, std::size_t e, PackedCandidates &out);
+void pack_in_range_portable(const CellSorted::View &v, double xi, double yi, double r2max,
+                            bool fluid_only, std::size_t b, std::size_t e, PackedCandidates &out);
 
 // The three drivers of the physics for Cell+Sorted (physics.hpp has them for stored lists).
 void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double back = 0);
