@@ -184,13 +184,6 @@ concept OverlapGrid = requires(G g, const G cg, const Particles &p, const CellWi
     { cg.columns_without_ghosts() } -> std::same_as<ColumnSet>;
 };
 
-// One particle's candidates within the support, packed in candidate order (columns west to
-// east, rows bottom to top, ids within a cell): their sorted positions and separations from
-// the particle, then padding to whole vectors (position `self`, separation 0, which every
-// kernel masks out as it masks the particle itself). The force and density loops then run over
-// the pairs that interact only: about half of the 3 x (2 rows_per_cell + 1) / rows_per_cell
-// cells' candidates lie beyond 3h, and the loops are bound by their arithmetic, which a masked
-// lane pays in full. A per-thread scratch, grown once and reused.
 // Cache-line aligned storage for the packed candidates: the pair loops read them in whole
 // 64-byte vectors, and from a 16-byte aligned heap block every such load splits two cache lines
 // (measured: the packing's 9 % gain gone when mpirun's environment shifted the heap).
@@ -205,6 +198,14 @@ template <class T> struct CacheLineAllocator {
     friend bool operator==(const CacheLineAllocator &, const CacheLineAllocator &) { return true; }
 };
 
+// One particle's candidates within the support, packed in candidate order (columns west to
+// east, rows bottom to top, ids within a cell): their sorted positions and separations from
+// the particle, then padding to whole vectors (position `self`, separation 0, which every
+// kernel masks out as it masks the particle itself). The force and density loops then run over
+// the pairs that interact only: about half of the 3 x (2 rows_per_cell + 1) / rows_per_cell
+// cells' candidates lie beyond 3h, and the loops are bound by their arithmetic, which a masked
+// lane pays in full. Each thread's scratch for one pass, grown to its largest neighbourhood and
+// reused for every particle.
 struct PackedCandidates {
     std::vector<std::uint32_t, CacheLineAllocator<std::uint32_t>> index;
     std::vector<double, CacheLineAllocator<double>> dx, dy;
