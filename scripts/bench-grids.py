@@ -20,6 +20,13 @@ order per round: the exchanges' time per step (comm_s, mean over ranks), the sha
 overlap hides (1 - overlapped / blocking, per round) of the ghost and density exchanges (the
 ones it overlaps) and of all three (migration stays blocking), and the wall time per step.
 
+Then the dam break at scale 1 over a longer run (--developed-steps, 1 rank, each thread count),
+Cell+Table and Cell+Sorted alternating: the short runs above see only the flow's start, where the
+particles still sit in their initial lattice order, and the stored-list grids' search and id sort
+grow dearer as that order decays (model/README.md, "Memory order"); Cell+Sorted's cost does not.
+Per report interval: each grid's time per step (the sum of its phase timers, 1 rank) and sorted
+over table per round; and over the whole run, from the wall times.
+
 With --pysph, PySPH (scripts/pysph_dambreak.py: the same dam break, spacing, time step, support
 and viscosity) at each thread count, alternating with sph --grid sorted on the same case in
 every round: particle-steps/s of each, and sorted over PySPH per round. PySPH's WCSPH takes 2
@@ -43,12 +50,12 @@ BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build
 GRIDS = ("list", "table", "sorted")
 
 
-def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False):
+def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False, interval=None):
     report = os.path.join(tmp, "sph.json")
     cmd = ["bash", os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(ranks), "-t", str(threads),
            os.path.join(BIN, "sph"), "--quiet", "--grid", grid, "--setup", setup, "--scale",
            str(scale), "--threads", str(threads), "--steps", str(steps), "--interval",
-           str(steps), "--report", report] + (["--overlap"] if overlap else [])
+           str(interval or steps), "--report", report] + (["--overlap"] if overlap else [])
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"bench-grids: {' '.join(cmd)} failed: {r.stderr.strip()}")
@@ -65,6 +72,11 @@ def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False):
             "comm_s_per_step": j["totals"]["timers"]["comm_s"]["avg"] / steps,
             "halo_comm_s_per_step": sum(r.get("halo_comm_s", 0) for iv in j["intervals"]
                                         for r in iv["ranks"]) / ranks / steps,
+            # Per interval (1 rank): its end step, simulated time and time per step, the sum of
+            # the rank's phase timers (they cover the step).
+            "intervals": [{"step": iv["step"], "time_s": iv["time_s"],
+                           "timers_s": sum(iv["ranks"][0]["timers"].values())}
+                          for iv in j["intervals"]] if ranks == 1 else [],
             # The binary's flags and the machine it ran on, for the benchmark's own report.
             "build": j.get("build"), "topology": j.get("topology")}
 
@@ -105,6 +117,11 @@ def main():
     ap.add_argument("--max-steps", type=int, default=400, help="default 400")
     ap.add_argument("--overlap-ranks", type=int, default=2,
                     help="ranks of the sorted --overlap comparison (default 2; 0: none)")
+    ap.add_argument("--developed-steps", type=int, default=1200,
+                    help="steps of the longer scale-1 dam break, table against sorted (default "
+                         "1200; 0: none)")
+    ap.add_argument("--developed-interval", type=int, default=200,
+                    help="its steps per report interval (default 200)")
     ap.add_argument("--pysph", action="store_true",
                     help="also run PySPH on the dam break (install-deps.sh --with-reference-tools)")
     ap.add_argument("--pysph-scale", type=float, default=1.0, help="its scale, default 1")
@@ -121,13 +138,18 @@ def main():
             grids = list(rows[0]["grids"]) if rows else []
         except (OSError, ValueError, KeyError, IndexError) as e:
             sys.exit(f"bench-grids: --plot-only {args.plot_only}: not a grid benchmark JSON ({e})")
-        plot(rows, grids, args.png or os.path.splitext(args.plot_only)[0] + ".png", overlap_rows)
+        plot(rows, grids, args.png or os.path.splitext(args.plot_only)[0] + ".png", overlap_rows,
+             old.get("developed", []))
         return
     if args.overlap_ranks < 0 or args.overlap_ranks == 1:
         sys.exit(f"bench-grids: --overlap-ranks {args.overlap_ranks}: expected 0 (none) or >= 2")
     if args.rounds < 1 or args.min_steps < 1 or args.max_steps < args.min_steps:
         sys.exit(f"bench-grids: --rounds {args.rounds} must be >= 1 and 1 <= --min-steps "
                  f"{args.min_steps} <= --max-steps {args.max_steps}")
+    if args.developed_steps < 0 or args.developed_interval < 1 or (
+            args.developed_steps and args.developed_steps % args.developed_interval):
+        sys.exit(f"bench-grids: --developed-steps {args.developed_steps} must be 0 or a positive "
+                 f"multiple of --developed-interval {args.developed_interval}")
     grids = args.grids.split(",")
     for g in grids:
         if g not in GRIDS:
@@ -181,6 +203,18 @@ def main():
                     overlap_runs[(setup, scale)][ov].append(
                         run_sph("sorted", setup, scale, 1, args.overlap_ranks,
                                 steps[(setup, scale)], tmp, overlap=ov))
+        # The longer dam break, table against sorted, alternating order.
+        developed = ("table" in grids and "sorted" in grids and args.developed_steps > 0)
+        developed_runs = {t: {"table": [], "sorted": []} for t in (threads if developed else [])}
+        for rnd in range(args.rounds):
+            for k, t in enumerate(developed_runs):
+                print(f"round {rnd + 1}/{args.rounds}, developed flow {k + 1}/"
+                      f"{len(developed_runs)}: dambreak s1, {args.developed_steps} steps, {t} "
+                      f"thread(s)", file=sys.stderr, flush=True)
+                for g in (("table", "sorted") if (rnd + k) % 2 == 0 else ("sorted", "table")):
+                    developed_runs[t][g].append(
+                        run_sph(g, "dambreak", 1.0, t, 1, args.developed_steps, tmp,
+                                interval=args.developed_interval))
         pysph_runs = {t: {"pysph": [], "sorted": []} for t in (threads if args.pysph else [])}
         for rnd in range(args.rounds):
             for k, t in enumerate(pysph_runs):
@@ -288,6 +322,38 @@ def main():
               f"{row['blocking']['step_s']['median'] * 1e3:8.2f} / "
               f"{row['overlap']['step_s']['median'] * 1e3:.2f}")
 
+    developed_rows = []
+    for t, runs in developed_runs.items():
+        tab, srt = runs["table"], runs["sorted"]
+        per_interval = []
+        for n, iv in enumerate(tab[0]["intervals"]):
+            steps_in = iv["step"] - (tab[0]["intervals"][n - 1]["step"] if n else 0)
+            per_interval.append({
+                "step": iv["step"], "time_s": iv["time_s"],
+                "table_step_s": spread([r["intervals"][n]["timers_s"] / steps_in for r in tab]),
+                "sorted_step_s": spread([r["intervals"][n]["timers_s"] / steps_in for r in srt]),
+                "speedup_over_table": spread([a["intervals"][n]["timers_s"] /
+                                              b["intervals"][n]["timers_s"]
+                                              for a, b in zip(tab, srt)])})
+        developed_rows.append({
+            "setup": "dambreak", "scale": 1.0, "threads": t, "ranks": 1,
+            "steps": args.developed_steps, "interval": args.developed_interval,
+            "rounds": args.rounds, "particles": tab[0]["particles"],
+            "per_interval": per_interval,
+            "whole_run": {"table_step_s": spread([r["step_s"] for r in tab]),
+                          "sorted_step_s": spread([r["step_s"] for r in srt]),
+                          "speedup_over_table": spread([a["step_s"] / b["step_s"]
+                                                        for a, b in zip(tab, srt)])}})
+    if developed_rows:
+        print(f"\nDam break, scale 1, {args.developed_steps} steps: Cell+Sorted over Cell+Table per "
+              f"step, per interval of {args.developed_interval} steps (median, min..max of the rounds)")
+        for row in developed_rows:
+            cells = [f"to {iv['time_s']:g} s {iv['speedup_over_table']['median']:.2f}"
+                     for iv in row["per_interval"]]
+            w = row["whole_run"]["speedup_over_table"]
+            print(f"  {row['threads']} thread(s): " + ", ".join(cells) +
+                  f"; whole run {w['median']:.2f} ({w['min']:.2f}..{w['max']:.2f})")
+
     pysph_rows = []
     for t, runs in pysph_runs.items():
         row = {"setup": "dambreak", "scale": args.pysph_scale, "threads": t, "ranks": 1,
@@ -319,18 +385,19 @@ def main():
               "git_commit": commit, "build": first["build"], "topology": first["topology"],
               "cores": cores, "particle_steps_per_run": args.particle_steps,
               "results": rows, "summary": summary, "overlap": overlap_rows,
-              "pysph": pysph_rows}
+              "developed": developed_rows, "pysph": pysph_rows}
     write_json(out, report)
-    plot(rows, grids, png, overlap_rows)
+    plot(rows, grids, png, overlap_rows, developed_rows)
 
 
-def plot(rows, grids, png, overlap_rows):
-    """ns per ordered pair per configuration and grid (1 rank), medians with min..max bars; and
-    the ghost and density exchanges per step, blocking against --overlap."""
+def plot(rows, grids, png, overlap_rows, developed_rows=()):
+    """ns per ordered pair per configuration and grid (1 rank), medians with min..max bars; the
+    ghost and density exchanges per step, blocking against --overlap; and sorted over table per
+    interval of the longer dam break."""
     plt = pyplot("bench-grids")
     if plt is None:
         return
-    panels = 3 if overlap_rows else 2
+    panels = 2 + (1 if overlap_rows else 0) + (1 if developed_rows else 0)
     fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.2))
     axes[1].sharey(axes[0])
     for ax, t in zip(axes, (1, 2)):
@@ -370,6 +437,22 @@ def plot(rows, grids, png, overlap_rows):
         ax.set_title(f"Cell+Sorted, {overlap_rows[0]['ranks']} ranks: hidden share above bars")
         ax.grid(axis="y", alpha=0.3)
         ax.legend(fontsize=8, loc="upper left")
+    if developed_rows:
+        ax = axes[-1]
+        for row in developed_rows:
+            ts = [iv["time_s"] for iv in row["per_interval"]]
+            med = [iv["speedup_over_table"]["median"] for iv in row["per_interval"]]
+            lo = [m - iv["speedup_over_table"]["min"] for m, iv in zip(med, row["per_interval"])]
+            hi = [iv["speedup_over_table"]["max"] - m for m, iv in zip(med, row["per_interval"])]
+            ax.errorbar(ts, med, yerr=[lo, hi], marker="o", capsize=2,
+                        label=f"{row['threads']} thread{'s' if row['threads'] > 1 else ''} "
+                              f"(whole run {row['whole_run']['speedup_over_table']['median']:.2f}x)")
+        ax.axhline(4, color="k", lw=0.8, ls="--")
+        ax.set_xlabel("simulated time at the interval's end, s")
+        ax.set_ylabel("Cell+Sorted over Cell+Table, per step")
+        ax.set_title(f"dam break s1, {developed_rows[0]['steps']} steps, 1 rank (dashed: 4x)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
     fig.suptitle("Grid schemes: time per neighbour interaction (dashed: 10 ns target)")
     fig.tight_layout()
     fig.savefig(png, dpi=110)
