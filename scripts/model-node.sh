@@ -153,6 +153,12 @@ calibrate_round() { # calibrate_round LABEL
     # session 34).
     cal_short 4 "cal_still_s0.5_sorted_r4_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
+    # The same load with 3.5 times longer steps (Cell+Table's still tank): the overhead grows
+    # with the step, and runs of two step lengths let calibration fit it as a + b x the shared
+    # core's compute (session 36: with the 1 ms steps alone the balanced table dam break on 4
+    # ranks, 8.7 ms steps, came out -0.8 to -10.9 % in four main jobs).
+    sph 4 "cal_still_s0.5_table_r4_$1" --setup still --scale 0.5 --grid table \
+        --steps "$cs_steps" --interval "$c_interval"
     # One rank x 2 threads (the cost at 2 threads is fitted on its own). On this VM a 2-thread
     # run was bimodal (model/README.md, session 16): the inter-core latency of the two vCPUs,
     # which switches in spells; since each thread keeps one block of cells (session 21) the far
@@ -323,6 +329,10 @@ if [ "$short_repeats" -gt 1 ] || [ "$cal_repeats" -gt 1 ]; then
     cal_reports=("$runs"/cal_*.json)
     val_reports=("$runs"/val_*.json)
 fi
+# Without the longer-step time-shared runs: the overhead per step a constant (session 34's).
+mapfile -t cal_reports < <(ls "$runs"/cal_*.json | grep -v '/cal_still_s0.5_table_r4_')
+model_and_validate "$out/constant-overhead" levelled-one-se froude >/dev/null
+cal_reports=("$runs"/cal_*.json)
 model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null
 model_and_validate "$out/ratio-overhead" levelled-one-se froude relative ratio >/dev/null
 model_and_validate "$out/no-profile" levelled-one-se none absolute >/dev/null

@@ -295,11 +295,22 @@ def markdown(model, validation, args, out):
                      ", ".join(f"{k} {v['factor']:.3f}" for k, v in lvl.get("per_setup", {}).items()) +
                      "). No prediction here is finer than that spread.")
     for t in model.get("time_sharing", []):
-        runs = ", ".join(f"{1e3 * r['overhead_s_per_step']:.3f} ms ({r['overhead']:.2f}x)" for r in t["runs"])
+        runs = ", ".join(f"{1e3 * r['overhead_s_per_step']:.3f} ms ({r['overhead']:.2f}x"
+                         + (f", at {1e3 * r['shared_compute_s_per_step']:.2f} ms of shared compute"
+                            if "shared_compute_s_per_step" in r else "") + ")" for r in t["runs"])
+        fit = t.get("overhead_fit")
+        if fit and not fit.get("used", True):
+            fit = None
+        uses = (f"the model adds the line fitted through them, {1e3 * fit['intercept_s_per_step']:.3f} "
+                f"(+-{1e3 * fit['intercept_se_s_per_step']:.3f}) ms + {fit['per_compute']:.3f} "
+                f"(+-{fit['per_compute_se']:.3f}) x the shared core's compute per step (R^2 "
+                f"{fit['r2']:.2f}; the median alone, session 34's model: "
+                f"{1e3 * t['overhead_s_per_step']:.3f} ms per step)" if fit else
+                f"the model adds the median, {1e3 * t['overhead_s_per_step']:.3f} ms per step on a "
+                f"shared core")
         lines.append(f"Time-sharing overhead at {t['load']:g} processes per core, measured on the app's own "
                      f"calibration runs as time per step beyond the busiest core's summed compute (and as a "
-                     f"ratio): {runs}; the model adds the median, {1e3 * t['overhead_s_per_step']:.3f} ms per "
-                     f"step on a shared core (mean {1e3 * t['overhead_s_per_step_mean']:.3f}, spread "
+                     f"ratio): {runs}; {uses} (mean {1e3 * t['overhead_s_per_step_mean']:.3f}, spread "
                      f"{1e3 * t['overhead_s_per_step_min']:.3f}-{1e3 * t['overhead_s_per_step_max']:.3f}); "
                      f"until session 34 it multiplied by the median ratio, {t['overhead']:.2f}. Other loads "
                      f"use the exchange benchmark's ratio.")
@@ -379,6 +390,15 @@ def markdown(model, validation, args, out):
              "--time-sharing-overhead per-step), chosen in session 34 after the table still tank on 3 "
              "ranks came out 2-16 % high in 13 of 14 main jobs: **tuned**. As a ratio on the shared core's "
              "compute (the model before) on the same runs: {o} (ratio-overhead/validation.json)."),
+            (any((t.get("overhead_fit") or {}).get("used", True) and t.get("overhead_fit")
+                 for t in model.get("time_sharing", [])),
+             "constant-overhead",
+             "At a load whose time-shared calibration runs differ 2x or more in step length and show the "
+             "overhead growing with it (slope above two standard errors), the overhead per step is a line "
+             "in the shared core's compute (calibrate: time_sharing overhead_fit), "
+             "chosen in session 36 after the balanced table dam break on 4 ranks came out -0.8 to -10.9 % "
+             "in four main jobs: **tuned**. Without the longer-step runs (the median overhead per step, "
+             "session 34's model) on the same runs: {o} (constant-overhead/validation.json)."),
         ]
         for in_use, subdir, line in choices:
             o = untuned(subdir)

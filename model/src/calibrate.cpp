@@ -616,10 +616,14 @@ json memory_model(const std::vector<SphRun> &runs) {
 // step (overhead_s_per_step): the switches happen at the step's exchanges, whatever its compute.
 // The ratio (overhead) is kept beside: taken from the 1 ms steps of the sorted still tank, it
 // put the 18 ms steps of the table still tank 2-16 % high in 13 of 14 main jobs (session 34).
+// Where a load's runs differ at least 2x in step length (the shared core's summed compute per
+// step), the overhead per step is also fitted as a + b x that compute (overhead_fit; session
+// 36): at 2 processes per core the 8.7 ms steps of the balanced table dam break paid about
+// 1.1 ms each, the 1 ms steps of the half-scale sorted still tank 0.2-0.3 ms.
 json time_sharing(const std::vector<SphRun> &runs, const json &compute, int cores) {
     struct Shared {
         std::string run;
-        double factor, seconds_per_step;
+        double factor, seconds_per_step, compute_per_step;
     };
     std::map<double, std::vector<Shared>> by_load;
     for (const auto &r : runs) {
@@ -652,22 +656,41 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
         }
         if (bound > 0)
             by_load[static_cast<double>(r.config.ranks * r.config.threads) / cores].push_back(
-                {r.path, measured / bound, (measured - bound) / shared_steps});
+                {r.path, measured / bound, (measured - bound) / shared_steps,
+                 bound / shared_steps});
     }
     json out = json::array();
     for (const auto &[load, v] : by_load) {
-        std::vector<double> o, add;
+        std::vector<double> o, add, base;
         json per_run = json::array();
         for (const auto &x : v) {
             o.push_back(x.factor);
             add.push_back(x.seconds_per_step);
+            base.push_back(x.compute_per_step);
             per_run.push_back({{"run", x.run},
                                {"overhead", x.factor},
-                               {"overhead_s_per_step", x.seconds_per_step}});
+                               {"overhead_s_per_step", x.seconds_per_step},
+                               {"shared_compute_s_per_step", x.compute_per_step}});
         }
         const Summary s = sphperf::summarize(o), a = sphperf::summarize(add);
+        const std::optional<LinearFit> line = fit_sharing_overhead(base, add);
+        // The line only where the runs show the growth: a slope of at least two standard errors.
+        const bool fit = line && line->coef[1] > 2 * line->se[1];
         // A sum of times pays the mean; the bimodal runs (a busy rank that shares its core with a
         // polling one, or not) make the median and the mean differ, so both are kept.
+        json overhead_fit = nullptr;
+        if (line) {
+            const auto [lo, hi] = std::minmax_element(base.begin(), base.end());
+            overhead_fit = {{"intercept_s_per_step", line->coef[0]},
+                            {"intercept_se_s_per_step", line->se[0]},
+                            {"per_compute", line->coef[1]},
+                            {"per_compute_se", line->se[1]},
+                            {"r2", line->r2},
+                            {"runs", v.size()},
+                            {"shared_compute_s_per_step_min", *lo},
+                            {"shared_compute_s_per_step_max", *hi},
+                            {"used", fit}};
+        }
         out.push_back({{"load", load},
                        {"overhead", s.median},
                        {"overhead_mean", s.avg},
@@ -677,7 +700,10 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
                        {"overhead_s_per_step_mean", a.avg},
                        {"overhead_s_per_step_min", a.min},
                        {"overhead_s_per_step_max", a.max},
-                       {"uses", "median of overhead_s_per_step"},
+                       {"overhead_fit", overhead_fit},
+                       {"uses", fit ? "overhead_fit: intercept + per_compute x the shared core's "
+                                      "summed compute per step"
+                                    : "median of overhead_s_per_step"},
                        {"runs", per_run},
                        {"method", "over the intervals where a core serves two or more busy "
                                   "ranks, measured time against the busiest core's summed "

@@ -52,4 +52,20 @@ SharedStep time_shared_step(std::span<const double> compute_s, std::span<const d
     return out;
 }
 
+std::optional<LinearFit> fit_sharing_overhead(std::span<const double> compute_per_step_s,
+                                              std::span<const double> overhead_per_step_s,
+                                              double min_span) {
+    if (compute_per_step_s.size() != overhead_per_step_s.size())
+        throw std::invalid_argument("fit_sharing_overhead: compute and overhead differ in length");
+    if (compute_per_step_s.size() < 3)
+        return std::nullopt;
+    const auto [lo, hi] = std::minmax_element(compute_per_step_s.begin(), compute_per_step_s.end());
+    if (!(*lo > 0) || *hi < min_span * *lo)
+        return std::nullopt;
+    std::vector<std::vector<double>> X;
+    for (double c : compute_per_step_s)
+        X.push_back({1.0, c});
+    return fit_linear(X, overhead_per_step_s, {"const", "shared_compute"});
+}
+
 } // namespace sphperf::model

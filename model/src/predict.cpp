@@ -44,8 +44,13 @@ struct Costs {
     bool overlap = false; // sph --overlap: ghosts and densities behind the interior columns
     // Time-sharing overhead measured on the app's own calibration runs, by load (ranks x
     // threads / cores); a load it did not run falls back to the exchange benchmark's.
-    // Per load: seconds per step added on a shared core, and the ratio (session 33's model).
-    std::map<double, std::pair<double, double>> sharing;
+    // Per load: seconds per step added on a shared core, and the ratio (session 33's model);
+    // with runs of several step lengths the seconds per step are a + b x the shared core's
+    // compute per step (session 36).
+    struct Sharing {
+        double seconds_per_step = 0, ratio = 1, per_compute = 0;
+    };
+    std::map<double, Sharing> sharing;
     bool sharing_ratio = false; // predict --time-sharing-overhead ratio
     // Step-to-step jitter of a rank's compute, standard deviation k sqrt(compute) (0: none
     // measured); within the cores a step lasts the expected maximum over the ranks.
@@ -119,9 +124,17 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         if (model.contains("jitter"))
             c.jitter_k_sqrt_s = model.at("jitter").at("k_sqrt_s").get<double>();
         if (model.contains("time_sharing"))
-            for (const auto &t : model.at("time_sharing"))
-                c.sharing[t.at("load").get<double>()] = {t.at("overhead_s_per_step").get<double>(),
-                                                         t.at("overhead").get<double>()};
+            for (const auto &t : model.at("time_sharing")) {
+                Costs::Sharing sh{t.at("overhead_s_per_step").get<double>(),
+                                  t.at("overhead").get<double>(), 0.0};
+                if (t.contains("overhead_fit") && !t.at("overhead_fit").is_null() &&
+                    t.at("overhead_fit").value("used", true)) {
+                    sh.seconds_per_step =
+                        t.at("overhead_fit").at("intercept_s_per_step").get<double>();
+                    sh.per_compute = t.at("overhead_fit").at("per_compute").get<double>();
+                }
+                c.sharing[t.at("load").get<double>()] = sh;
+            }
         if (model.contains("memory")) {
             const auto &mem = model.at("memory");
             // Per grid when the model has it (Cell+Sorted stores a copy, no pairs).
@@ -154,6 +167,13 @@ struct RankStep {
 struct SharingOverhead {
     double factor = 1.0, seconds_per_step = 0.0;
     const char *source = "";
+    double per_compute = 0.0; // seconds added per second of the shared core's compute
+    // Seconds added to a shared core's step of `compute` seconds (a fitted line is held at 0
+    // where it would cross it below the shortest calibrated step).
+    double added(double compute) const {
+        return per_compute == 0 ? seconds_per_step
+                                : std::max(0.0, seconds_per_step + per_compute * compute);
+    }
 };
 SharingOverhead sharing_overhead(const Costs &c, int processes, const ExchangeSet *set,
                                  double gap_s) {
@@ -163,8 +183,13 @@ SharingOverhead sharing_overhead(const Costs &c, int processes, const ExchangeSe
     for (const auto &[l, o] : c.sharing)
         if (std::abs(l - load) < 1e-9)
             return c.sharing_ratio
-                       ? SharingOverhead{o.second, 0.0, "time-shared calibration run (ratio)"}
-                       : SharingOverhead{1.0, o.first,
+                       ? SharingOverhead{o.ratio, 0.0, "time-shared calibration run (ratio)"}
+                   : o.per_compute != 0
+                       ? SharingOverhead{1.0, o.seconds_per_step,
+                                         "time-shared calibration runs (seconds per step, a line "
+                                         "in the shared core's compute)",
+                                         o.per_compute}
+                       : SharingOverhead{1.0, o.seconds_per_step,
                                          "time-shared calibration run (seconds per step)"};
     if (set)
         return {ExchangeModel::round_overhead(*set, gap_s), 0.0, "exchange benchmark"};
@@ -268,7 +293,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         const int K = static_cast<int>(block.size());
         const SharedStep s = time_shared_step(bc, bf, launcher_placement(K, threads, c.cores),
                                               threads, c.cores, overhead.factor);
-        return s.step_s + (s.shared_core ? overhead.seconds_per_step : 0.0);
+        return s.step_s + (s.shared_core ? overhead.added(s.step_s) : 0.0);
     };
     // The compute since the shift before decides what a shift costs on this kind of machine
     // (exchange benchmark; ExchangeModel::app_shift_seconds): within the cores about half a

@@ -537,6 +537,31 @@ TEST(Placement, TimeSharedStepIsTheBusiestCore) {
     EXPECT_THROW(time_shared_step(s, field, unbound, 1, 2), std::invalid_argument);
 }
 
+TEST(Placement, SharingOverheadLineRecoversPlantedCoefficients) {
+    // Planted: 0.1 ms per step plus 12 % of the shared core's compute, runs at 1 ms and 4 ms
+    // steps (two each), with +-5 us of noise that cancels pairwise.
+    const double a = 1e-4, b = 0.12;
+    const std::vector<double> compute{1e-3, 1e-3, 4e-3, 4e-3};
+    const std::vector<double> noise{5e-6, -5e-6, -5e-6, 5e-6};
+    std::vector<double> overhead;
+    for (std::size_t i = 0; i < compute.size(); ++i)
+        overhead.push_back(a + b * compute[i] + noise[i]);
+    const auto line = fit_sharing_overhead(compute, overhead);
+    ASSERT_TRUE(line.has_value());
+    EXPECT_NEAR(line->coefficient("const"), a, 1e-12);
+    EXPECT_NEAR(line->coefficient("shared_compute"), b, 1e-9);
+    // The standard errors of the noise: rse = sqrt(4 x 25e-12 / 2), se(b) = rse / sqrt(Sxx).
+    const double rse = std::sqrt(4 * 25e-12 / 2), sxx = 4 * 2.25e-6;
+    EXPECT_NEAR(line->rse, rse, 1e-12);
+    EXPECT_NEAR(line->se[1], rse / std::sqrt(sxx), 1e-9);
+    // One step length (the span below 2x) or fewer than 3 runs: no line, the median is used.
+    const std::vector<double> narrow{1e-3, 1.5e-3, 1.9e-3};
+    EXPECT_FALSE(fit_sharing_overhead(narrow, std::vector<double>{1e-4, 2e-4, 3e-4}).has_value());
+    const std::vector<double> two{1e-3, 4e-3};
+    EXPECT_FALSE(fit_sharing_overhead(two, std::vector<double>{1e-4, 5e-4}).has_value());
+    EXPECT_THROW(fit_sharing_overhead(two, overhead), std::invalid_argument);
+}
+
 TEST(Comm, EachMessageIsCostedWithItsOwnPiece) {
     const CommModel m = CommModel::from_profile(two_piece_profile());
     EXPECT_NEAR(m.seconds(0, 1, 1000), 1e-7 + 1000 * 1e-10, 1e-15);   // small piece

@@ -5,6 +5,9 @@
 // runs and not in others: 3.4-6.1 s over 12 runs, 3.4-4.1 s over 11 runs bound (model/README.md,
 // "Time-sharing"). A core serves its ranks' compute one after the other (their phases are
 // shorter than a scheduler slice), so a step lasts at least the busiest core's summed compute.
+#include "sphperf/model/fit.hpp"
+
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -28,5 +31,14 @@ struct SharedStep {
 SharedStep time_shared_step(std::span<const double> compute_s, std::span<const double> field,
                             std::span<const int> pus, int threads, int cores,
                             double overhead = 1.0);
+
+// The time-sharing overhead per step of a shared core as a + b x its summed compute per step
+// (terms "const" and "shared_compute"), fitted over the time-shared calibration runs of one
+// load when there are at least 3 and their compute per step spans `min_span` or more (the runs
+// of one step length cannot tell a from b); otherwise none, and the model adds their median
+// overhead per step. Throws std::invalid_argument on spans of different lengths.
+std::optional<LinearFit> fit_sharing_overhead(std::span<const double> compute_per_step_s,
+                                              std::span<const double> overhead_per_step_s,
+                                              double min_span = 2.0);
 
 } // namespace sphperf::model
