@@ -102,8 +102,7 @@ fi
 # 1.25). Each one's first run alone is validated too (first-runs/). About 15 s.
 short_repeats=3
 # Likewise the calibration runs under 0.5 s (Cell+Sorted's half-scale still tanks at 2, 3 and 4
-# ranks and at 2 threads, its 2-thread dam break at scale 0.35; and since session 36's third job
-# Cell+Table's 4-rank still tank, 1.2 s), each round's median run kept:
+# ranks and at 2 threads, its 2-thread dam break at scale 0.35), each round's median run kept:
 # session 35's second main job had one still tank at 1.19 times the fit while its twin and the
 # same round's dam break sat at 0.98 and 0.95, and the setup's level, the mean of two, put the
 # scale-1 sorted still tanks 13-17 % high. Chosen after that miss (tuned in that sense);
@@ -158,9 +157,7 @@ calibrate_round() { # calibrate_round LABEL
     # with the step, and runs of two step lengths let calibration fit it as a + b x the shared
     # core's compute (session 36: with the 1 ms steps alone the balanced table dam break on 4
     # ranks, 8.7 ms steps, came out -0.8 to -10.9 % in four main jobs).
-    # Its overhead swung 0.48-1.18 ms between the two rounds of session 36's third job, which
-    # left the line's slope under two standard errors: 3 runs per round, the median kept.
-    cal_short 4 "cal_still_s0.5_table_r4_$1" --setup still --scale 0.5 --grid table \
+    sph 4 "cal_still_s0.5_table_r4_$1" --setup still --scale 0.5 --grid table \
         --steps "$cs_steps" --interval "$c_interval"
     # One rank x 2 threads (the cost at 2 threads is fitted on its own). On this VM a 2-thread
     # run was bimodal (model/README.md, session 16): the inter-core latency of the two vCPUs,
