@@ -390,12 +390,12 @@ def markdown(model, validation, args, out):
              "--time-sharing-overhead per-step), chosen in session 34 after the table still tank on 3 "
              "ranks came out 2-16 % high in 13 of 14 main jobs: **tuned**. As a ratio on the shared core's "
              "compute (the model before) on the same runs: {o} (ratio-overhead/validation.json)."),
-            (any((t.get("overhead_fit") or {}).get("used", True) and t.get("overhead_fit")
-                 for t in model.get("time_sharing", [])),
+            (any(t.get("overhead_fit") for t in model.get("time_sharing", [])),
              "constant-overhead",
-             "At a load whose time-shared calibration runs differ 2x or more in step length and show the "
-             "overhead growing with it (slope above two standard errors), the overhead per step is a line "
-             "in the shared core's compute (calibrate: time_sharing overhead_fit), "
+             "Time-shared calibration runs of two step lengths at one load (Cell+Table's 4-rank still tank "
+             "beside Cell+Sorted's), the overhead per step fitted through them as a line in the shared "
+             "core's compute (calibrate: time_sharing overhead_fit) and used where its slope exceeds two "
+             "standard errors, else the median of all of them, "
              "chosen in session 36 after the balanced table dam break on 4 ranks came out -0.8 to -10.9 % "
              "in four main jobs: **tuned**. Without the longer-step runs (the median overhead per step, "
              "session 34's model) on the same runs: {o} (constant-overhead/validation.json)."),

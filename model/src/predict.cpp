@@ -184,13 +184,12 @@ SharingOverhead sharing_overhead(const Costs &c, int processes, const ExchangeSe
         if (std::abs(l - load) < 1e-9)
             return c.sharing_ratio
                        ? SharingOverhead{o.ratio, 0.0, "time-shared calibration run (ratio)"}
-                   : o.per_compute != 0
-                       ? SharingOverhead{1.0, o.seconds_per_step,
-                                         "time-shared calibration runs (seconds per step, a line "
-                                         "in the shared core's compute)",
-                                         o.per_compute}
                        : SharingOverhead{1.0, o.seconds_per_step,
-                                         "time-shared calibration run (seconds per step)"};
+                                         o.per_compute != 0
+                                             ? "time-shared calibration runs (seconds per step, a "
+                                               "line in the shared core's compute)"
+                                             : "time-shared calibration run (seconds per step)",
+                                         o.per_compute};
     if (set)
         return {ExchangeModel::round_overhead(*set, gap_s), 0.0, "exchange benchmark"};
     return {1.0, 0.0, "none (no measurement at this load)"};
