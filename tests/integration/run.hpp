@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <vector>
 
 namespace sphperf::testing {
 
@@ -53,12 +55,43 @@ inline std::string mpirun(int ranks) {
            " ";
 }
 
-// A fresh scratch directory per test.
+// Removes the scratch directories when the test program passed; after a failure it keeps them
+// and names them, for whoever debugs it. (ctest runs each test in its own process, so a
+// directory outlives exactly the test that wrote it; without this every run left ~150 behind.)
+class ScratchCleaner : public ::testing::EmptyTestEventListener {
+public:
+    static ScratchCleaner &instance() {
+        static ScratchCleaner *c = [] {
+            auto *l = new ScratchCleaner; // the listener list owns it
+            ::testing::UnitTest::GetInstance()->listeners().Append(l);
+            return l;
+        }();
+        return *c;
+    }
+    void add(const std::filesystem::path &d) { dirs_.push_back(d); }
+    void OnTestProgramEnd(const ::testing::UnitTest &unit) override {
+        for (const auto &d : dirs_) {
+            if (unit.Passed()) {
+                std::error_code ec;
+                std::filesystem::remove_all(d, ec);
+            } else {
+                std::fprintf(stderr, "kept scratch directory %s\n", d.c_str());
+            }
+        }
+        dirs_.clear();
+    }
+
+private:
+    std::vector<std::filesystem::path> dirs_;
+};
+
+// A fresh scratch directory per test, removed at the end if the program passed.
 inline std::filesystem::path scratch(const std::string &name) {
     const auto d = std::filesystem::temp_directory_path() /
                    ("sphperf_test_" + name + "_" + std::to_string(getpid()));
     std::filesystem::remove_all(d);
     std::filesystem::create_directories(d);
+    ScratchCleaner::instance().add(d);
     return d;
 }
 
