@@ -399,6 +399,14 @@ def markdown(model, validation, args, out):
              "chosen in session 36 after the balanced table dam break on 4 ranks came out -0.8 to -10.9 % "
              "in four main jobs: **tuned**. Without the longer-step runs (the median overhead per step, "
              "session 34's model) on the same runs: {o} (constant-overhead/validation.json)."),
+            (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
+             "two-rounds",
+             "Cell+Sorted's short calibration runs once in each of three rounds spread over the job "
+             "(a, then c about a minute later, then b), each setup's level the median of three runs "
+             "minutes apart, chosen in session 37 after one round's still tank at 1.18 times the fit "
+             "(its three back-to-back runs alike: a slow spell of the VM lasts 10-60 s) put the "
+             "sorted still tanks +21 %: **tuned**. Without round c (two rounds, each setup's level "
+             "the mean of two) on the same runs: {o} (two-rounds/validation.json)."),
         ]
         for in_use, subdir, line in choices:
             o = untuned(subdir)
@@ -418,8 +426,8 @@ def markdown(model, validation, args, out):
                          "calibrating (chosen in session 36 after one 0.3 s still tank at 1.19 times "
                          "the fit put the sorted still tanks 13-17 % high): "
                          + "; ".join(cal_repeated) + ". ")
-            lines.append(text + "Calibrated and validated with each one's first run instead: "
-                         f"{o} (first-runs/validation.json).")
+            lines.append(text + ("Calibrated and validated" if cal_repeated else "Validated")
+                         + f" with each one's first run instead: {o} (first-runs/validation.json).")
     if s["inline_comm_abs_error_per_interval"]:
         lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
                      f"measured gap; {fresh_source(args)}): median per-interval |error| "
