@@ -299,15 +299,14 @@ def markdown(model, validation, args, out):
                          + (f", at {1e3 * r['shared_compute_s_per_step']:.2f} ms of shared compute"
                             if "shared_compute_s_per_step" in r else "") + ")" for r in t["runs"])
         fit = t.get("overhead_fit")
-        if fit and not fit.get("used", True):
-            fit = None
-        uses = (f"the model adds the line fitted through them, {1e3 * fit['intercept_s_per_step']:.3f} "
-                f"(+-{1e3 * fit['intercept_se_s_per_step']:.3f}) ms + {fit['per_compute']:.3f} "
-                f"(+-{fit['per_compute_se']:.3f}) x the shared core's compute per step (R^2 "
-                f"{fit['r2']:.2f}; the median alone, session 34's model: "
-                f"{1e3 * t['overhead_s_per_step']:.3f} ms per step)" if fit else
-                f"the model adds the median, {1e3 * t['overhead_s_per_step']:.3f} ms per step on a "
+        uses = (f"the model adds the median, {1e3 * t['overhead_s_per_step']:.3f} ms per step on a "
                 f"shared core")
+        if fit and fit.get("significant"):
+            uses += (f" (predict --time-sharing-overhead line would add the line fitted through "
+                     f"them, {1e3 * fit['intercept_s_per_step']:.3f} "
+                     f"(+-{1e3 * fit['intercept_se_s_per_step']:.3f}) ms + {fit['per_compute']:.3f} "
+                     f"(+-{fit['per_compute_se']:.3f}) x the shared core's compute per step, R^2 "
+                     f"{fit['r2']:.2f})")
         lines.append(f"Time-sharing overhead at {t['load']:g} processes per core, measured on the app's own "
                      f"calibration runs as time per step beyond the busiest core's summed compute (and as a "
                      f"ratio): {runs}; {uses} (mean {1e3 * t['overhead_s_per_step_mean']:.3f}, spread "
@@ -390,15 +389,6 @@ def markdown(model, validation, args, out):
              "--time-sharing-overhead per-step), chosen in session 34 after the table still tank on 3 "
              "ranks came out 2-16 % high in 13 of 14 main jobs: **tuned**. As a ratio on the shared core's "
              "compute (the model before) on the same runs: {o} (ratio-overhead/validation.json)."),
-            (any(t.get("overhead_fit") for t in model.get("time_sharing", [])),
-             "constant-overhead",
-             "Time-shared calibration runs of two step lengths at one load (Cell+Table's 4-rank still tank "
-             "beside Cell+Sorted's), the overhead per step fitted through them as a line in the shared "
-             "core's compute (calibrate: time_sharing overhead_fit) and used where its slope exceeds two "
-             "standard errors, else the median of all of them, "
-             "chosen in session 36 after the balanced table dam break on 4 ranks came out -0.8 to -10.9 % "
-             "in four main jobs: **tuned**. Without the longer-step runs (the median overhead per step, "
-             "session 34's model) on the same runs: {o} (constant-overhead/validation.json)."),
             (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
              "two-rounds",
              "Cell+Sorted's short calibration runs once in each of three rounds spread over the job "

@@ -619,7 +619,9 @@ json memory_model(const std::vector<SphRun> &runs) {
 // Where a load's runs differ at least 2x in step length (the shared core's summed compute per
 // step), the overhead per step is also fitted as a + b x that compute (overhead_fit; session
 // 36): at 2 processes per core the 8.7 ms steps of the balanced table dam break paid about
-// 1.1 ms each, the 1 ms steps of the half-scale sorted still tank 0.2-0.3 ms.
+// 1.1 ms each, the 1 ms steps of the half-scale sorted still tank 0.2-0.3 ms. Predict uses
+// the line only when asked (--time-sharing-overhead line): in two blind main jobs it did worse
+// than the median (session 37).
 json time_sharing(const std::vector<SphRun> &runs, const json &compute, int cores) {
     struct Shared {
         std::string run;
@@ -674,7 +676,8 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
         }
         const Summary s = sphperf::summarize(o), a = sphperf::summarize(add);
         const std::optional<LinearFit> line = fit_sharing_overhead(base, add);
-        // The line only where the runs show the growth: a slope of at least two standard errors.
+        // Significant where the runs show the growth: a slope of at least two standard errors.
+        // Only predict --time-sharing-overhead line uses it (session 37).
         const bool fit = line && line->coef[1] > 2 * line->se[1];
         // A sum of times pays the mean; the bimodal runs (a busy rank that shares its core with a
         // polling one, or not) make the median and the mean differ, so both are kept.
@@ -689,7 +692,7 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
                             {"runs", v.size()},
                             {"shared_compute_s_per_step_min", *lo},
                             {"shared_compute_s_per_step_max", *hi},
-                            {"used", fit}};
+                            {"significant", fit}};
         }
         out.push_back({{"load", load},
                        {"overhead", s.median},
@@ -701,8 +704,9 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
                        {"overhead_s_per_step_min", a.min},
                        {"overhead_s_per_step_max", a.max},
                        {"overhead_fit", overhead_fit},
-                       {"uses", fit ? "overhead_fit: intercept + per_compute x the shared core's "
-                                      "summed compute per step"
+                       {"uses", fit ? "median of overhead_s_per_step (predict "
+                                      "--time-sharing-overhead line: overhead_fit, intercept + "
+                                      "per_compute x the shared core's summed compute per step)"
                                     : "median of overhead_s_per_step"},
                        {"runs", per_run},
                        {"method", "over the intervals where a core serves two or more busy "

@@ -44,14 +44,18 @@ struct Costs {
     bool overlap = false; // sph --overlap: ghosts and densities behind the interior columns
     // Time-sharing overhead measured on the app's own calibration runs, by load (ranks x
     // threads / cores); a load it did not run falls back to the exchange benchmark's.
-    // Per load: seconds per step added on a shared core, and the ratio (session 33's model);
-    // with runs of several step lengths the seconds per step are a + b x the shared core's
-    // compute per step (session 36).
+    // Per load: the median seconds per step added on a shared core, and the ratio (session 33's
+    // model); with runs of several step lengths whose slope is significant, also the line
+    // a + b x the shared core's compute per step (session 36; used with
+    // --time-sharing-overhead line only since session 37: in use in two blind main jobs it put
+    // the balanced 4-rank dam break +8.0 and +26.5 %, the median -4.2 and within 8.6 %).
     struct Sharing {
-        double seconds_per_step = 0, ratio = 1, per_compute = 0;
+        double seconds_per_step = 0, ratio = 1, line_intercept = 0, per_compute = 0;
+        bool line = false; // a significant line was fitted
     };
     std::map<double, Sharing> sharing;
     bool sharing_ratio = false; // predict --time-sharing-overhead ratio
+    bool sharing_line = false;  // predict --time-sharing-overhead line
     // Step-to-step jitter of a rank's compute, standard deviation k sqrt(compute) (0: none
     // measured); within the cores a step lasts the expected maximum over the ranks.
     double jitter_k_sqrt_s = 0;
@@ -128,10 +132,11 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
                 Costs::Sharing sh{t.at("overhead_s_per_step").get<double>(),
                                   t.at("overhead").get<double>(), 0.0};
                 if (t.contains("overhead_fit") && !t.at("overhead_fit").is_null() &&
-                    t.at("overhead_fit").value("used", true)) {
-                    sh.seconds_per_step =
+                    t.at("overhead_fit").value("significant", false)) {
+                    sh.line_intercept =
                         t.at("overhead_fit").at("intercept_s_per_step").get<double>();
                     sh.per_compute = t.at("overhead_fit").at("per_compute").get<double>();
+                    sh.line = true;
                 }
                 c.sharing[t.at("load").get<double>()] = sh;
             }
@@ -184,12 +189,13 @@ SharingOverhead sharing_overhead(const Costs &c, int processes, const ExchangeSe
         if (std::abs(l - load) < 1e-9)
             return c.sharing_ratio
                        ? SharingOverhead{o.ratio, 0.0, "time-shared calibration run (ratio)"}
+                   : c.sharing_line && o.line
+                       ? SharingOverhead{1.0, o.line_intercept,
+                                         "time-shared calibration runs (seconds per step, a "
+                                         "line in the shared core's compute)",
+                                         o.per_compute}
                        : SharingOverhead{1.0, o.seconds_per_step,
-                                         o.per_compute != 0
-                                             ? "time-shared calibration runs (seconds per step, a "
-                                               "line in the shared core's compute)"
-                                             : "time-shared calibration run (seconds per step)",
-                                         o.per_compute};
+                                         "time-shared calibration run (seconds per step)"};
     if (set)
         return {ExchangeModel::round_overhead(*set, gap_s), 0.0, "exchange benchmark"};
     return {1.0, 0.0, "none (no measurement at this load)"};
@@ -457,6 +463,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                          req.grid);
     c.overlap = req.overlap;
     c.sharing_ratio = req.time_sharing_overhead == "ratio";
+    c.sharing_line = req.time_sharing_overhead == "line";
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());

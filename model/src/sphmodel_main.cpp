@@ -124,10 +124,11 @@ int run(int argc, char **argv) {
                   "interior columns");
     pre->add_option("--time-sharing-overhead", q.time_sharing_overhead,
                     "Above the cores, the calibration's time-sharing overhead added per step on a "
-                    "shared core (per-step) or as a factor on its summed compute (ratio, the "
-                    "model before session 34)")
+                    "shared core (per-step: the median), as a line in its summed compute where "
+                    "calibration fitted one (line; else per-step), or as a factor on it (ratio, "
+                    "the model before session 34)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"per-step", "ratio"}));
+        ->check(CLI::IsMember({"per-step", "line", "ratio"}));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

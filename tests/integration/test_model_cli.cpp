@@ -185,6 +185,38 @@ TEST(ModelCli, CalibratePredictValidate) {
     EXPECT_NEAR((walls[0] - 40 * ts["overhead_s_per_step"].get<double>()) *
                     ts["overhead"].get<double>(),
                 walls[1], 1e-9 * walls[1]);
+    // A line through the overhead (session 36) is used by the line form only, and only where
+    // calibration found its slope significant: planted with slope 0 and an intercept 0.1 ms
+    // above the median, the 40 shared steps of the line form last 4 ms longer; not significant,
+    // or the default form, the line changes nothing.
+    for (const bool significant : {true, false}) {
+        auto planted = load(f.model);
+        planted["time_sharing"][0]["overhead_fit"] = {
+            {"intercept_s_per_step", ts["overhead_s_per_step"].get<double>() + 1e-4},
+            {"per_compute", 0.0},
+            {"significant", significant}};
+        const auto model_line = f.dir / "model_line.json";
+        std::ofstream(model_line) << planted.dump();
+        for (const std::string form : {"line", "per-step"}) {
+            const auto out = f.dir / ("pred_sharing_planted_" + form + ".json");
+            const sphperf::testing::Run rl =
+                run(bin("sphmodel") + " predict --model " + model_line.string() +
+                    " --setup still --scale 0.5 --ranks 3 --steps 40 --interval 10 "
+                    "--time-sharing-overhead " +
+                    form + " --out " + out.string());
+            ASSERT_EQ(rl.code, 0) << rl.err;
+            const auto c = load(out)["configurations"][0];
+            const bool line = significant && form == "line";
+            EXPECT_EQ(c["time_sharing_source"].get<std::string>(),
+                      line ? "time-shared calibration runs (seconds per step, a line in the "
+                             "shared core's compute)"
+                           : "time-shared calibration run (seconds per step)")
+                << form << significant;
+            EXPECT_NEAR(c["wall_s"].get<double>(), walls[0] + (line ? 40 * 1e-4 : 0.0),
+                        1e-9 * walls[0])
+                << form << significant;
+        }
+    }
     // Idle onset (thesis 3.7.3): each rank's predicted first busy step lies within the report
     // interval in which the real 3-rank run's rank first held a field particle; null if never.
     {
