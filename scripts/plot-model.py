@@ -108,7 +108,7 @@ def scaling(predictions, validation, out):
     plt.close(fig)
 
 
-def workload(predictions, runs_dir, out):
+def workload(model, predictions, runs_dir, out):
     pred = next((p for p in predictions if p["request"]["setup"] == "dambreak"
                  and p["request"]["scale"] == 1 and p["request"]["grid"] == "table"
                  and p["configurations"][0].get("decomposition", "equal") == "equal"), None)
@@ -129,8 +129,10 @@ def workload(predictions, runs_dir, out):
                     color=line.get_color(), label=f"rank {r} measured")
     ax.set_xlabel("simulated time (s)")
     ax.set_ylabel("field particles owned")
+    trace = model.get("traces", {}).get("dambreak", {})
+    source = f"a scale-{trace['scale']:g} trace" if "scale" in trace else "the calibration's trace"
     ax.set_title(f"Workload per rank, dam break scale 1, {P} ranks (thesis Fig. 4.3)\n"
-                 f"predicted from a half-scale trace by Froude similarity")
+                 f"predicted from {source} by Froude similarity")
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
@@ -509,7 +511,7 @@ def main():
     runs = os.path.join(d, "runs")
     roofline(model, os.path.join(d, "roofline.png"))
     scaling(predictions, validation, os.path.join(d, "scaling.png"))
-    workload(predictions, runs, os.path.join(d, "workload.png"))
+    workload(model, predictions, runs, os.path.join(d, "workload.png"))
     regressions(model, runs, os.path.join(d, "regressions.png"))
     comm_error(validation, os.path.join(d, "comm_error.png"))
     markdown(model, validation, args, os.path.join(d, "validation.md"))
