@@ -399,6 +399,13 @@ def markdown(model, validation, args, out):
              "(its three back-to-back runs alike: a slow spell of the VM lasts 10-60 s) put the "
              "sorted still tanks +21 %: **tuned**. Without round c (two rounds, each setup's level "
              "the mean of two) on the same runs: {o} (two-rounds/validation.json)."),
+            (not any("_s0.35_sorted_t2_" in r["path"] for r in model["calibration_runs"]),
+             "two-thread-scales",
+             "Cell+Sorted at 2 threads calibrated on its dam break at scale 0.7 and still tank at "
+             "0.5 only, chosen in session 37 after the 1 x 2 dam break at scale 1 came out high in "
+             "10 of 13 main jobs (mean +6.3 %) while in session 37's jobs the scale-0.35 runs' median level sat 9-15 % "
+             "above the scale-0.7 runs' in the same fit: **tuned**. With the 2-thread dam breaks at scale 0.35 "
+             "as well (session 31's model) on the same runs: {o} (two-thread-scales/validation.json)."),
         ]
         for in_use, subdir, line in choices:
             o = untuned(subdir)
