@@ -102,7 +102,7 @@ fi
 # 1.25). Each one's first run alone is validated too (first-runs/). About 15 s.
 short_repeats=3
 # Cell+Sorted's calibration runs (the short ones: half-scale still tanks at 2, 3 and 4 ranks and
-# at 2 threads, dam breaks at 0.35 x 2 threads and 0.5 x 2 ranks) run once in each of three
+# at 2 threads, dam breaks at 0.5 x 2 ranks and 0.7 x 2 threads) run once in each of three
 # rounds spread over the job, so that each setup's level is the median of three runs minutes
 # apart. A slow spell of this VM (one rank 20-35 % slower for 10-60 s, model/README.md,
 # session 37) covers runs seconds apart alike: session 36 ran each 3 times back to back and kept
@@ -120,8 +120,9 @@ spread_rounds=1
 # such runs in place of the half-scale ones, wall median 3.0 -> 2.8 %, every list and table
 # dam break within 5.6 % (model/README.md, session 16). Cell+Sorted's half-scale dam break
 # stays: it is cheap and covers the whole validation flow (1500 steps of 0.1 ms at every scale:
-# 0.21 in Froude time, the validation's 0.15). The model's workload trace is the run reaching
-# furthest in Froude time, the 2-thread dam break at scale 0.35 (0.25).
+# 0.21 in Froude time, the validation's 0.15); reaching furthest in Froude time of the model's
+# runs, it is also the workload trace (the 2-thread dam breaks at 0.35, 0.25, serve
+# two-thread-scales/ only).
 calibrate_round() { # calibrate_round LABEL
     local t0=$SECONDS grid
     for grid in table list; do
