@@ -35,8 +35,9 @@ SharedStep time_shared_step(std::span<const double> compute_s, std::span<const d
 // The time-sharing overhead per step of a shared core as a + b x its summed compute per step
 // (terms "const" and "shared_compute"), fitted over the time-shared calibration runs of one
 // load when there are at least 3 and their compute per step spans `min_span` or more (the runs
-// of one step length cannot tell a from b); otherwise none, and the model adds their median
-// overhead per step. Throws std::invalid_argument on spans of different lengths.
+// of one step length cannot tell a from b); otherwise none. The model adds the median overhead
+// per step unless asked for the line (predict --time-sharing-overhead line, session 37).
+// Throws std::invalid_argument on spans of different lengths.
 std::optional<LinearFit> fit_sharing_overhead(std::span<const double> compute_per_step_s,
                                               std::span<const double> overhead_per_step_s,
                                               double min_span = 2.0);
