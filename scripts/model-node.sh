@@ -107,10 +107,10 @@ short_repeats=3
 # more: Cell+List's and Cell+Table's again in round b, Cell+Sorted's in a third round c a minute
 # after round a. Replayed on the runs of sessions 34-37's 18 main jobs, the 18 runs gave wall
 # medians of 3.5 % on average against 3.3 % (2.8 % median both), the max within 10 % in 9 jobs
-# against 8, for a third less calibration time (model/README.md, session 38). Chosen after seeing those
-# validation runs: **tuned**. The job still runs the 10 (round b's list and table runs, round c)
-# for more-runs/, session 37's calibration; they are timed apart (cmp_s), not as calibration.
-# Not in --quick (no round c there).
+# against 8, for a third less calibration time (model/README.md, session 38). Chosen after
+# seeing those validation runs: **tuned**. The job still runs the 10 (round b's list and table
+# runs, round c) for more-runs/, session 37's calibration; they are timed apart (cmp_s), not as
+# calibration. Not in --quick (no round c there).
 more_runs=1
 [ "$quick" -eq 1 ] && more_runs=0
 
