@@ -286,10 +286,12 @@ def markdown(model, validation, args, out):
     if args.calibration_s and args.validation_s:
         lines.append(f"Calibration took {args.calibration_s:.0f} s of wall time, the validation runs it "
                      f"predicts {args.validation_s:.0f} s: {100 * args.calibration_s / args.validation_s:.0f} %.")
-        if args.comparison_s:
+        readers = [d for d in ("more-runs", "two-thread-scales")
+                   if os.path.exists(os.path.join(args.dir, d, "validation.json"))]
+        if args.comparison_s and readers:
             lines.append(f"The job also ran {args.comparison_s:.0f} s of calibration runs that only the "
-                         f"comparison models below read (more-runs/, two-thread-scales/), not counted "
-                         f"above.")
+                         f"comparison models below read ({', '.join(d + '/' for d in readers)}), not "
+                         f"counted above.")
     for c in model["compute"]:
         lvl = c.get("run_level")
         if not lvl:
