@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -43,34 +44,51 @@ Run still_sorted_with_profile(int ranks, const fs::path &machine, const fs::path
 
 // Shared fixtures, made once: a machine profile from the shipped raw reports, and short
 // half-scale dam-break runs at 1, 2 and 3 ranks with fine intervals, and a still tank at 3 ranks
-// (3 ranks is above the shipped profile's 2 cores: time-shared).
+// (3 ranks is above the shipped profile's 2 cores: time-shared). Every test runs in a process of
+// its own under ctest, so there the fixture test (tests/CMakeLists.txt) makes them once in
+// SPHPERF_MODEL_FIXTURE_DIR and the others read them (they took 2 s per test); run alone, the
+// binary makes its own.
 struct Fixture {
     fs::path dir, machine, run1, run2, run3, still3, model;
     Fixture() {
-        dir = scratch("model_cli");
+        const char *shared = std::getenv("SPHPERF_MODEL_FIXTURE_DIR");
+        const bool use_shared = shared != nullptr && *shared != '\0';
+        dir = use_shared ? fs::path(shared) : scratch("model_cli");
         machine = dir / "machine.json";
-        Run r = reference_profile(machine);
-        EXPECT_EQ(r.code, 0) << r.err;
-        // The shipped profile is of host "vm": calibrate with --allow-other-host elsewhere.
         run1 = dir / "run1.json";
         run2 = dir / "run2.json";
         run3 = dir / "run3.json";
-        for (auto [ranks, path] : {std::pair{1, run1}, std::pair{2, run2}, std::pair{3, run3}}) {
-            r = run(mpirun(ranks) + bin("sph") +
-                    " --quiet --setup dambreak --scale 0.5 --steps 60 --interval 10 --machine " +
-                    machine.string() + " --report " + path.string());
-            EXPECT_EQ(r.code, 0) << r.err;
-        }
-        // All three ranks of a still tank are busy: it measures the time-sharing overhead.
         still3 = dir / "still3.json";
-        r = run(mpirun(3) + bin("sph") + " --quiet --setup still --scale 0.5 --steps 40 " +
-                "--interval 10 --report " + still3.string());
-        EXPECT_EQ(r.code, 0) << r.err;
         model = dir / "model.json";
-        r = run(bin("sphmodel") + " calibrate --allow-other-host --machine " + machine.string() +
-                " --runs " + run1.string() + " " + run2.string() + " " + run3.string() + " " +
-                still3.string() + " --out " + model.string());
-        EXPECT_EQ(r.code, 0) << r.err;
+        const fs::path complete = dir / "complete";
+        if (use_shared && std::getenv("SPHPERF_MODEL_FIXTURE_MAKE") == nullptr) {
+            EXPECT_TRUE(fs::exists(complete)) << "the fixture test did not complete " << dir;
+            return;
+        }
+        if (use_shared) {
+            fs::remove_all(dir);
+            fs::create_directories(dir);
+        }
+        bool ok = true;
+        auto expect_ok = [&ok](const Run &r) {
+            EXPECT_EQ(r.code, 0) << r.err;
+            ok = ok && r.code == 0;
+        };
+        expect_ok(reference_profile(machine));
+        // The shipped profile is of host "vm": calibrate with --allow-other-host elsewhere.
+        for (auto [ranks, path] : {std::pair{1, run1}, std::pair{2, run2}, std::pair{3, run3}})
+            expect_ok(run(mpirun(ranks) + bin("sph") +
+                          " --quiet --setup dambreak --scale 0.5 --steps 60 --interval 10 "
+                          "--machine " +
+                          machine.string() + " --report " + path.string()));
+        // All three ranks of a still tank are busy: it measures the time-sharing overhead.
+        expect_ok(run(mpirun(3) + bin("sph") + " --quiet --setup still --scale 0.5 --steps 40 " +
+                      "--interval 10 --report " + still3.string()));
+        expect_ok(run(bin("sphmodel") + " calibrate --allow-other-host --machine " +
+                      machine.string() + " --runs " + run1.string() + " " + run2.string() + " " +
+                      run3.string() + " " + still3.string() + " --out " + model.string()));
+        if (use_shared && ok)
+            std::ofstream(complete) << "made by the fixture test\n";
     }
 };
 const Fixture &fixture() {
@@ -78,6 +96,13 @@ const Fixture &fixture() {
     return f;
 }
 } // namespace
+
+// ctest's fixture test (model_cli_fixture) runs this one alone to make the shared fixture.
+TEST(ModelCli, FixtureIsMade) {
+    const auto &f = fixture();
+    for (const auto &path : {f.machine, f.run1, f.run2, f.run3, f.still3, f.model})
+        EXPECT_TRUE(fs::exists(path)) << path;
+}
 
 TEST(ModelCli, RecutReproducesTheFieldCountsOfARealThreeRankRun) {
     const auto j = load(fixture().run3);
@@ -257,6 +282,7 @@ TEST(ModelCli, CalibratePredictValidate) {
         EXPECT_TRUE(c["first_step_all_ranks_busy"]["predicted_step"].is_null()) << c["run"];
     }
     // A bound that no real prediction meets makes validate exit 1, after writing the report.
+    fs::remove(f.dir / "v0.json");
     r = run(bin("sphmodel") + " validate --max-error 0 --prediction " + pred.string() +
             " --measured " + f.run3.string() + " --out " + (f.dir / "v0.json").string());
     EXPECT_EQ(r.code, 1);
