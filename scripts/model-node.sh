@@ -282,6 +282,8 @@ mapfile -t cal_reports < <(model_runs)
 val_reports=("$runs"/val_*.json)
 model_and_validate() {
     local dir=$1 rule=$2 profile=$3 weights=${4:-relative} sharing=${5:-per-step}
+    local predict_extra=()
+    [ -n "${6:-}" ] && read -r -a predict_extra <<<"$6"
     mkdir -p "$dir"
     rm -f "$dir/refused.txt"
     stage "calibration ($rule, time profile $profile)"
@@ -297,7 +299,7 @@ model_and_validate() {
         # The model in use must predict everything; a comparison model may refuse a
         # configuration its calibration cannot reach (exit 2, its one line kept).
         "$build/bin/sphmodel" predict --model "$dir/model.json" --threads "$threads" \
-            --interval "$interval" --time-sharing-overhead "$sharing" \
+            --interval "$interval" --time-sharing-overhead "$sharing" "${predict_extra[@]}" \
             --out "$dir/prediction_$name.json" "$@" 2>"$dir/$name.err" || {
             local rc=$?
             if [ "$dir" = "$out" ] || [ "$rc" -ne 2 ]; then
@@ -365,6 +367,12 @@ if ls "$runs"/cal_dambreak_s0.35_sorted_t2_*.json >/dev/null 2>&1; then
 fi
 model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null
 model_and_validate "$out/ratio-overhead" levelled-one-se froude relative ratio >/dev/null
+# The time-shared steps replayed instead of the overhead (session 39, a prototype beside the
+# model: model/README.md).
+model_and_validate "$out/time-shared-replay" levelled-one-se froude relative replay >/dev/null
+# ... at the 4 ms tick a parked rank sees (measured; the slice above was preferred to it).
+model_and_validate "$out/time-shared-replay-4ms" levelled-one-se froude relative replay \
+    "--replay-slice-ms 4" >/dev/null
 model_and_validate "$out/no-profile" levelled-one-se none absolute >/dev/null
 model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute >/dev/null
 /usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" --validation-s "$val_s" \

@@ -864,6 +864,38 @@ json compute_time_profile(const json &entry, const std::vector<const SphRun *> &
     return out;
 }
 
+// How a busy rank's compute splits between the three segments of a step, from the phase
+// timers of the calibration runs within the cores (predict --time-sharing-overhead replay):
+// before the migration (momentum's part of the compute phase, the kicks), before the ghosts
+// (mirrors, packing), before the density refresh (grid, search, id sort, continuity's part).
+// The compute phase holds both passes: continuity's part is its share of the operations per
+// candidate counted in model/README.md ("Flops and bytes"), about 50 of 114.
+namespace {
+json segment_shares(const std::vector<const SphRun *> &runs) {
+    constexpr double continuity_share = 0.44;
+    std::array<double, 3> sum{};
+    for (const SphRun *r : runs)
+        for (const auto &iv : r->intervals)
+            for (const auto &rk : iv.ranks) {
+                if (rk.steps < 1 || rk.field_mean <= 0)
+                    continue;
+                const double comp = rk.timer("comp_s");
+                sum[0] += (1 - continuity_share) * comp + rk.timer("integrate_s");
+                sum[1] += rk.timer("boundary_s") + rk.timer("pack_s");
+                sum[2] += rk.timer("grid_s") + rk.timer("pairs_s") + rk.timer("idsort_s") +
+                          continuity_share * comp;
+            }
+    const double total = sum[0] + sum[1] + sum[2];
+    if (!(total > 0))
+        return nullptr;
+    return {{"before_migration", sum[0] / total},
+            {"before_ghosts", sum[1] / total},
+            {"before_densities", sum[2] / total},
+            {"method", "busy ranks of the calibration runs within the cores: compute phase "
+                       "split 0.44 / 0.56 between continuity and momentum"}};
+}
+} // namespace
+
 json calibrate(const json &header, const json &machine, const std::vector<SphRun> &runs,
                const CalibrateOptions &opt) {
     if (runs.empty())
@@ -965,11 +997,12 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
         json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile, opt.fit_weights);
         c["grid"] = key.first;
         c["threads"] = key.second;
+        std::vector<const SphRun *> mine;
+        for (const SphRun &r : own_cores)
+            if (r.config.grid == key.first && r.config.threads == key.second)
+                mine.push_back(&r);
+        c["segment_shares"] = segment_shares(mine);
         if (opt.time_profile == TimeProfile::froude) {
-            std::vector<const SphRun *> mine;
-            for (const SphRun &r : own_cores)
-                if (r.config.grid == key.first && r.config.threads == key.second)
-                    mine.push_back(&r);
             c["time_profile"] = compute_time_profile(c, mine);
             c["time_profile"]["method"] =
                 "per setup, measured / fitted compute of the busy ranks of the calibration runs "

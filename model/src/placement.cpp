@@ -68,4 +68,135 @@ std::optional<LinearFit> fit_sharing_overhead(std::span<const double> compute_pe
     return fit_linear(X, overhead_per_step_s, {"const", "shared_compute"});
 }
 
+namespace {
+// One MPI_Sendrecv of the app's exchanges: send to `to`, then wait for `from` (-1: none).
+struct Call {
+    int to, from;
+    bool comm; // transfers (comm) or handshake (wait)
+};
+} // namespace
+
+ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s, int cores,
+                                double slice_s, int steps, double tick_s) {
+    const int P = static_cast<int>(cpu_s.size());
+    if (P < 1 || cores < 1 || !(slice_s > 0) || !(tick_s > 0) || steps < 3)
+        throw std::invalid_argument("replay_time_shared: expected ranks >= 1, cores >= 1, a "
+                                    "slice and a tick > 0 and steps >= 3");
+    constexpr int warm = 2;
+    // Per rank the ops of one step: compute segment k (call index -1), then its exchange.
+    struct Op {
+        int segment; // >= 0: compute; -1: a call
+        Call call;
+    };
+    std::vector<std::vector<Op>> prog(static_cast<std::size_t>(P));
+    for (int r = 0; r < P; ++r) {
+        const int west = r > 0 ? r - 1 : -1, east = r + 1 < P ? r + 1 : -1;
+        auto &ops = prog[static_cast<std::size_t>(r)];
+        for (int k = 0; k < 3; ++k) {
+            ops.push_back({k, {}});
+            ops.push_back({-1, {east, west, false}});
+            ops.push_back({-1, {west, east, false}});
+            for (int i = 0; i < 2; ++i)
+                ops.push_back({-1, {east, west, true}});
+            for (int i = 0; i < 2; ++i)
+                ops.push_back({-1, {west, east, true}});
+        }
+    }
+    const std::size_t nops = prog[0].size();
+    auto idx = [P](int from, int to) { return static_cast<std::size_t>(from * P + to); };
+    std::vector<long> sent(static_cast<std::size_t>(P * P), 0), got(sent.size(), 0);
+    std::vector<std::size_t> pc(static_cast<std::size_t>(P), 0);
+    std::vector<int> step(static_cast<std::size_t>(P), 0);
+    std::vector<double> left(static_cast<std::size_t>(P), -1);
+    std::vector<char> posted(static_cast<std::size_t>(P), 0);
+    std::vector<std::vector<int>> on_core(static_cast<std::size_t>(cores));
+    for (int r = 0; r < P; ++r)
+        on_core[static_cast<std::size_t>(r % cores)].push_back(r);
+    std::vector<int> running(static_cast<std::size_t>(cores), -1);
+    std::vector<double> held(static_cast<std::size_t>(cores), 0);
+    for (int c = 0; c < cores; ++c)
+        if (!on_core[static_cast<std::size_t>(c)].empty())
+            running[static_cast<std::size_t>(c)] = on_core[static_cast<std::size_t>(c)][0];
+    ReplayedStep out;
+    out.wait_s.assign(static_cast<std::size_t>(P), 0);
+    out.comm_s.assign(static_cast<std::size_t>(P), 0);
+    // Runs rank r for up to `budget` seconds of CPU; true when it gives its core away.
+    auto run = [&](int r, double budget) {
+        const auto u = static_cast<std::size_t>(r);
+        double spent = 0;
+        while (step[u] < steps) {
+            const Op &op = prog[u][pc[u]];
+            if (op.segment >= 0) {
+                if (left[u] < 0)
+                    left[u] = cpu_s[u][static_cast<std::size_t>(op.segment)];
+                const double take = std::min(left[u], budget - spent);
+                left[u] -= take;
+                spent += take;
+                if (left[u] > 1e-12)
+                    return false;
+                left[u] = -1;
+            } else {
+                if (!posted[u]) {
+                    if (op.call.to >= 0)
+                        ++sent[idx(r, op.call.to)];
+                    posted[u] = 1;
+                }
+                if (op.call.from >= 0) {
+                    if (got[idx(op.call.from, r)] >= sent[idx(op.call.from, r)])
+                        return true; // nothing there: it yields
+                    ++got[idx(op.call.from, r)];
+                }
+                posted[u] = 0;
+            }
+            if (++pc[u] == nops) {
+                pc[u] = 0;
+                ++step[u];
+            }
+            if (spent >= budget)
+                return false;
+        }
+        return true;
+    };
+    double t = 0, t_start = -1;
+    auto all_past = [&](int s) {
+        return std::all_of(step.begin(), step.end(), [s](int x) { return x >= s; });
+    };
+    while (!all_past(steps)) {
+        for (int c = 0; c < cores; ++c) {
+            const auto cu = static_cast<std::size_t>(c);
+            const int r = running[cu];
+            if (r < 0)
+                continue;
+            const bool yielded = run(r, tick_s);
+            held[cu] += tick_s;
+            const auto &mine = on_core[cu];
+            if (mine.size() > 1 && (yielded || held[cu] >= slice_s)) {
+                const auto at = std::find(mine.begin(), mine.end(), r) - mine.begin();
+                running[cu] = mine[static_cast<std::size_t>(at + 1) % mine.size()];
+                held[cu] = 0;
+            }
+        }
+        t += tick_s;
+        if (t_start < 0 && all_past(warm)) {
+            t_start = t;
+            std::fill(out.wait_s.begin(), out.wait_s.end(), 0.0);
+            std::fill(out.comm_s.begin(), out.comm_s.end(), 0.0);
+        }
+        for (int r = 0; r < P; ++r) {
+            const auto u = static_cast<std::size_t>(r);
+            if (step[u] >= steps)
+                continue;
+            const Op &op = prog[u][pc[u]];
+            if (op.segment < 0)
+                (op.call.comm ? out.comm_s : out.wait_s)[u] += tick_s;
+        }
+    }
+    const double n = steps - warm;
+    for (auto *v : {&out.wait_s, &out.comm_s})
+        for (double &x : *v)
+            x /= n;
+    out.step_s = (t - t_start) / n;
+    return out;
+}
+
 } // namespace sphperf::model

@@ -10,6 +10,7 @@
 #include "sphperf/sph/balance.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -56,6 +57,11 @@ struct Costs {
     std::map<double, Sharing> sharing;
     bool sharing_ratio = false; // predict --time-sharing-overhead ratio
     bool sharing_line = false;  // predict --time-sharing-overhead line
+    // predict --time-sharing-overhead replay: a shared node's step replayed
+    // (replay_time_shared) with this slice and the calibration's segment shares of compute
+    bool sharing_replay = false;
+    double replay_slice_s = 1.5e-3;
+    std::optional<std::array<double, 3>> segment_shares;
     // Step-to-step jitter of a rank's compute, standard deviation k sqrt(compute) (0: none
     // measured); within the cores a step lasts the expected maximum over the ranks.
     double jitter_k_sqrt_s = 0;
@@ -85,6 +91,12 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             if (m.at("grid") == grid && m.at("threads") == threads) {
                 c.compute = compute_cost_of(m, setup);
                 found = true;
+                if (m.contains("segment_shares") && !m.at("segment_shares").is_null()) {
+                    const auto &g = m.at("segment_shares");
+                    c.segment_shares = std::array<double, 3>{
+                        g.at("before_migration").get<double>(), g.at("before_ghosts").get<double>(),
+                        g.at("before_densities").get<double>()};
+                }
                 if (m.contains("time_profile") && m.at("time_profile").contains(setup)) {
                     const auto &p = m.at("time_profile").at(setup);
                     const auto t = p.at("froude_time_s").get<std::vector<double>>();
@@ -394,6 +406,22 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     // runs measured at this load, else the exchange benchmark's round overhead. Above the cores
     // a rank waiting in a shift is descheduled and the others compute: the shifts' cost is
     // inside the time-sharing bound, not added to it.
+    // --time-sharing-overhead replay: one node, one-thread ranks bound round-robin: the step,
+    // each rank's transfers and waits from the step replayed (who runs while whom waits).
+    if (c.sharing_replay && nodes == 1 && threads == 1 && node_shared(0)) {
+        const auto &sh = *c.segment_shares;
+        std::vector<std::array<double, 3>> cpu;
+        for (double x : compute)
+            cpu.push_back({x * sh[0], x * sh[1], x * sh[2]});
+        const ReplayedStep rep = replay_time_shared(cpu, c.cores, c.replay_slice_s);
+        step_s = rep.step_s;
+        for (std::size_t r = 0; r < out.size(); ++r) {
+            out[r].comm_s = rep.comm_s[r];
+            out[r].wait_s = std::max(0.0, step_s - out[r].compute_s - out[r].comm_s);
+            out[r].idle_s = out[r].field > 0 ? 0.0 : step_s;
+        }
+        return out;
+    }
     std::vector<double> mean, sd;
     double shared_step = 0;
     for (int n = 0; n < nodes; ++n) {
@@ -464,6 +492,11 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     c.overlap = req.overlap;
     c.sharing_ratio = req.time_sharing_overhead == "ratio";
     c.sharing_line = req.time_sharing_overhead == "line";
+    c.sharing_replay = req.time_sharing_overhead == "replay";
+    c.replay_slice_s = req.replay_slice_s;
+    if (c.sharing_replay && !c.segment_shares)
+        throw UsageError("--time-sharing-overhead replay needs the compute's segment shares, "
+                         "which this model lacks: calibrate it again (session 39 or later)");
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
@@ -513,6 +546,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"compute_time_profile", c.profile.empty() ? "none" : "froude"}};
     out["fluid_particles"] = probe.fluid_particles;
     out["request"]["time_sharing_overhead"] = req.time_sharing_overhead;
+    if (c.sharing_replay)
+        out["request"]["replay_slice_s"] = req.replay_slice_s;
     out["request"]["decompositions"] = req.decompositions;
     out["request"]["balance_weights"] = {
         {"fluid", req.weights.fluid}, {"walls", req.weights.walls}, {"source", req.weights.source}};
@@ -716,12 +751,14 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  {"oversubscribed", per_node * req.threads > c.cores},
                  {"placement_pus", placement_of(P, req.nodes, req.threads, c.cores)},
                  {"time_sharing_source",
-                  sharing_overhead(c, per_node * req.threads,
-                                   c.exchange.empty()
-                                       ? nullptr
-                                       : &c.exchange.set_for(per_node, req.threads, c.cores),
-                                   0)
-                      .source},
+                  c.sharing_replay && req.nodes == 1 && req.threads == 1 && P > c.cores
+                      ? "the step replayed (replay_time_shared)"
+                      : sharing_overhead(c, per_node * req.threads,
+                                         c.exchange.empty()
+                                             ? nullptr
+                                             : &c.exchange.set_for(per_node, req.threads, c.cores),
+                                         0)
+                            .source},
                  {"wall_s", wall},
                  {"totals",
                   {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},

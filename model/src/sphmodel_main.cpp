@@ -126,9 +126,15 @@ int run(int argc, char **argv) {
                     "Above the cores, the calibration's time-sharing overhead added per step on a "
                     "shared core (per-step: the median), as a line in its summed compute where "
                     "calibration fitted one (line; else per-step), or as a factor on it (ratio, "
-                    "the model before session 34)")
+                    "the model before session 34); or none: the step replayed (replay, a "
+                    "prototype: who runs while whom waits, one-thread ranks on one node)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"per-step", "line", "ratio"}));
+        ->check(CLI::IsMember({"per-step", "line", "ratio", "replay"}));
+    pre->add_option_function<double>(
+           "--replay-slice-ms", [&q](double ms) { q.replay_slice_s = ms * 1e-3; },
+           "With --time-sharing-overhead replay: the scheduler slice of a computing rank, ms "
+           "(default 1.5: the kernel's EEVDF base slice on 2 CPUs)")
+        ->check(CLI::PositiveNumber);
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

@@ -210,6 +210,54 @@ TEST(ModelCli, CalibratePredictValidate) {
     EXPECT_NEAR((walls[0] - 40 * ts["overhead_s_per_step"].get<double>()) *
                     ts["overhead"].get<double>(),
                 walls[1], 1e-9 * walls[1]);
+    // The step replayed (session 39): no overhead; the shared core's step, transfers and waits
+    // from who runs while whom waits. Each interval's step is at least the busiest core's
+    // compute (cores serve their ranks one at a time; to 1 %: the replay's window of whole
+    // steps starts and ends at other phases of each rank), the phases of each rank fill its step,
+    // and the calibration's segment shares sum to 1. A model without them cannot replay.
+    {
+        double shares = 0;
+        for (const auto &c : m["compute"])
+            if (c["threads"] == 1)
+                for (const char *k : {"before_migration", "before_ghosts", "before_densities"})
+                    shares += c["segment_shares"][k].get<double>();
+        EXPECT_NEAR(shares, 1.0, 1e-12);
+        const auto out = f.dir / "pred_sharing_replay.json";
+        const sphperf::testing::Run rr =
+            run(bin("sphmodel") + " predict --model " + f.model.string() +
+                " --setup still --scale 0.5 --ranks 3 --steps 40 --interval 10 "
+                "--time-sharing-overhead replay --out " +
+                out.string());
+        ASSERT_EQ(rr.code, 0) << rr.err;
+        const auto c = load(out)["configurations"][0];
+        EXPECT_EQ(c["time_sharing_source"].get<std::string>(),
+                  "the step replayed (replay_time_shared)");
+        for (const auto &iv : c["intervals"]) {
+            const auto &rk = iv["ranks"];
+            const double step = iv["wall_s"].get<double>();
+            EXPECT_GE(step * (1 + 1e-2),
+                      rk[0]["compute_s"].get<double>() + rk[2]["compute_s"].get<double>());
+            for (const auto &x : rk)
+                EXPECT_NEAR(x["compute_s"].get<double>() + x["comm_s"].get<double>() +
+                                x["wait_s"].get<double>(),
+                            step, 1e-6 * step + 1e-9);
+        }
+        auto stripped = m;
+        for (auto &e : stripped["compute"])
+            e.erase("segment_shares");
+        const auto old_model = f.dir / "model_without_shares.json";
+        std::ofstream(old_model) << stripped.dump();
+        const auto refused = f.dir / "pred_replay_refused.json";
+        const sphperf::testing::Run bad =
+            run(bin("sphmodel") + " predict --model " + old_model.string() +
+                " --setup still --scale 0.5 --ranks 3 --steps 40 --time-sharing-overhead replay "
+                "--out " +
+                refused.string());
+        EXPECT_EQ(bad.code, 2);
+        EXPECT_EQ(bad.err_lines(), 1) << bad.err;
+        EXPECT_NE(bad.err.find("segment shares"), std::string::npos) << bad.err;
+        EXPECT_FALSE(fs::exists(refused));
+    }
     // A line through the overhead (session 36) is used by the line form only, and only where
     // calibration found its slope significant: planted with slope 0 and an intercept 0.1 ms
     // above the median, the 40 shared steps of the line form last 4 ms longer; not significant,

@@ -537,6 +537,39 @@ TEST(Placement, TimeSharedStepIsTheBusiestCore) {
     EXPECT_THROW(time_shared_step(s, field, unbound, 1, 2), std::invalid_argument);
 }
 
+// The time-shared step replayed (session 39): where the transfers of a parked rank land.
+TEST(Placement, ReplayedStepParksTheRankBesideTheBusyOne) {
+    // Within the cores, equal work: nobody waits, and the step is one rank's compute.
+    const std::array<double, 3> ms{1e-3, 1e-3, 1e-3};
+    const auto even = replay_time_shared({ms, ms}, 2, 1.5e-3);
+    EXPECT_NEAR(even.step_s, 3e-3, 1e-4);
+    for (int r = 0; r < 2; ++r) {
+        EXPECT_LT(even.wait_s[static_cast<std::size_t>(r)], 1e-4);
+        EXPECT_LT(even.comm_s[static_cast<std::size_t>(r)], 1e-4);
+    }
+    // The 3-rank dam break early on (session 39's job, ms per step): rank 0 busy on core 0,
+    // rank 1 alone on core 1, rank 2 idle beside rank 0. The step is rank 0's compute; rank 1
+    // waits for it at the handshakes; rank 2, parked beside it, spends the step in its
+    // exchanges, most of it in transfers that wait for rank 1, which waits for rank 0.
+    const std::vector<std::array<double, 3>> dam{
+        {3.62e-3, 0.04e-3, 8.0e-3}, {0.53e-3, 0.02e-3, 1.61e-3}, {0.01e-3, 0.01e-3, 0.07e-3}};
+    const auto three = replay_time_shared(dam, 2, 1.5e-3);
+    EXPECT_NEAR(three.step_s, 11.66e-3, 0.02 * 11.66e-3);
+    EXPECT_LT(three.wait_s[0] + three.comm_s[0], 0.3e-3);
+    EXPECT_NEAR(three.wait_s[1] + three.comm_s[1], three.step_s - 2.16e-3, 0.3e-3);
+    EXPECT_LT(three.comm_s[1], 0.3e-3);
+    EXPECT_NEAR(three.wait_s[2] + three.comm_s[2], three.step_s - 0.09e-3, 0.3e-3);
+    EXPECT_GT(three.comm_s[2], 0.5 * three.step_s);
+    // Two busy ranks on one core take turns: the step is their summed compute (to the tick,
+    // 5 us, per hand-over) and a little more for the hand-overs.
+    const auto shared = replay_time_shared({ms, ms}, 1, 1.5e-3);
+    EXPECT_GT(shared.step_s, 0.99 * 6e-3);
+    EXPECT_LT(shared.step_s, 1.1 * 6e-3);
+    EXPECT_THROW(replay_time_shared({}, 2, 1.5e-3), std::invalid_argument);
+    EXPECT_THROW(replay_time_shared({ms}, 2, 0.0), std::invalid_argument);
+    EXPECT_THROW(replay_time_shared({ms}, 0, 1.5e-3), std::invalid_argument);
+}
+
 TEST(Placement, SharingOverheadLineRecoversPlantedCoefficients) {
     // Planted: 0.1 ms per step plus 12 % of the shared core's compute, runs at 1 ms and 4 ms
     // steps (two each), with +-5 us of noise that cancels pairwise.

@@ -7,6 +7,7 @@
 // shorter than a scheduler slice), so a step lasts at least the busiest core's summed compute.
 #include "sphperf/model/fit.hpp"
 
+#include <array>
 #include <optional>
 #include <span>
 #include <vector>
@@ -41,5 +42,21 @@ SharedStep time_shared_step(std::span<const double> compute_s, std::span<const d
 std::optional<LinearFit> fit_sharing_overhead(std::span<const double> compute_per_step_s,
                                               std::span<const double> overhead_per_step_s,
                                               double min_span = 2.0);
+
+// The time-shared step replayed (session 39, model/README.md; predict --time-sharing-overhead
+// replay): one-thread ranks bound round-robin to `cores` cores, each step three segments of CPU
+// work (cpu_s[r]: before the migration, the ghost and the density exchange), each followed by
+// its exchange as the app makes it (a zero-byte handshake east then west: wait; counts and
+// payloads east then west: comm). A computing rank keeps its core until its segment ends or
+// `slice_s` has passed since it took the core; a rank in MPI yields its core while the message
+// it waits for has not arrived; sends complete at once. Replays `steps` steps (the first two
+// not counted) in ticks of `tick_s` and returns each rank's wait and comm per step and the step.
+// Throws std::invalid_argument on no rank, cores < 1, slice or tick <= 0, or steps < 3.
+struct ReplayedStep {
+    std::vector<double> wait_s, comm_s; // per rank, per step
+    double step_s = 0;
+};
+ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s, int cores,
+                                double slice_s, int steps = 20, double tick_s = 5e-6);
 
 } // namespace sphperf::model

@@ -123,6 +123,9 @@ struct PredictRequest {
     // The time-sharing overhead the calibration measured, added per step on a shared core
     // (per-step) or as a factor on its summed compute (ratio, the model before session 34).
     std::string time_sharing_overhead = "per-step";
+    // replay: a shared node's step, comm and wait from the time-shared step replayed
+    // (replay_time_shared, session 39) with this scheduler slice, not from an overhead.
+    double replay_slice_s = 1.5e-3;
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);
