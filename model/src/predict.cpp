@@ -398,14 +398,6 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
                    (c.overlap ? overlapped(c.record_bytes) + overlapped(density_bytes)
                               : exchange(c.record_bytes, true) + exchange(density_bytes, false));
     }
-    // Within the cores the step lasts as long as the slowest rank's compute + communication,
-    // each compute with its step-to-step jitter: the expected maximum, not the largest mean.
-    // The exchanges are blocking: every rank's step lasts as long as the slowest. A core that
-    // serves two busy ranks costs a little more than their summed compute (switches, a rank
-    // waiting for a descheduled neighbour): the overhead the app's own time-shared calibration
-    // runs measured at this load, else the exchange benchmark's round overhead. Above the cores
-    // a rank waiting in a shift is descheduled and the others compute: the shifts' cost is
-    // inside the time-sharing bound, not added to it.
     // --time-sharing-overhead replay: one node, one-thread ranks bound round-robin: the step,
     // each rank's transfers and waits from the step replayed (who runs while whom waits).
     if (c.sharing_replay && nodes == 1 && threads == 1 && node_shared(0)) {
@@ -422,6 +414,14 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         }
         return out;
     }
+    // Within the cores the step lasts as long as the slowest rank's compute + communication,
+    // each compute with its step-to-step jitter: the expected maximum, not the largest mean.
+    // The exchanges are blocking: every rank's step lasts as long as the slowest. A core that
+    // serves two busy ranks costs a little more than their summed compute (switches, a rank
+    // waiting for a descheduled neighbour): the overhead the app's own time-shared calibration
+    // runs measured at this load, else the exchange benchmark's round overhead. Above the cores
+    // a rank waiting in a shift is descheduled and the others compute: the shifts' cost is
+    // inside the time-sharing bound, not added to it.
     std::vector<double> mean, sd;
     double shared_step = 0;
     for (int n = 0; n < nodes; ++n) {
