@@ -434,10 +434,24 @@ def markdown(model, validation, args, out):
             lines.append(text + ("Calibrated and validated" if cal_repeated else "Validated")
                          + f" with each one's first run instead: {o} (first-runs/validation.json).")
     if s["inline_comm_abs_error_per_interval"]:
-        lines.append(f"Communication, inline prediction (exchange benchmark, the mean shift cost at the "
-                     f"measured gap; {fresh_source(args)}): median per-interval |error| "
+        replayed = s.get("inline_comm_abs_error_per_interval_exchange_benchmark") is not None
+        above = ("; above the cores the step replayed from each rank's measured CPU time before "
+                 "each shift (sph --replay-slice-ms, 1.5 ms)" if replayed else "")
+        lines.append(f"Communication, inline prediction (within the cores the exchange benchmark, the "
+                     f"mean shift cost at the measured gap; {fresh_source(args)}{above}): median "
+                     f"per-interval |error| "
                      f"{100 * s['inline_comm_abs_error_per_interval']['median']:.1f} % (target 20 %); "
                      f"{inline_by_load(validation)}.")
+        bench = s.get("inline_comm_abs_error_per_interval_exchange_benchmark")
+        if bench:
+            lines.append(f"Above the cores the inline prediction replays the time-shared step (who runs "
+                         f"while whom waits, model/README.md), with the slice of the model's replay, "
+                         f"1.5 ms, preferred to the 4 ms tick in session 39 after seeing sessions 38-39's "
+                         f"runs (**tuned**); chosen in session 40 after the exchange benchmark (every rank "
+                         f"the same work) missed the parked rank in every main job. Untuned, the exchange "
+                         f"benchmark above the cores as well (the inline prediction before, recorded by the "
+                         f"same runs): median per-interval |error| {100 * bench['median']:.1f} %; "
+                         f"{inline_by_load(validation, 'inline_exchange_error')}.")
         own = s.get("inline_comm_abs_error_per_interval_own_kind_gap")
         if own:
             lines.append(f"Within the cores the migration and the density refresh are costed at the gap since "

@@ -78,28 +78,43 @@ struct Call {
 
 ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s, int cores,
                                 double slice_s, int steps, double tick_s) {
+    if (cores < 1)
+        throw std::invalid_argument("replay_time_shared: expected cores >= 1");
+    std::vector<int> core_of(cpu_s.size());
+    for (std::size_t r = 0; r < core_of.size(); ++r)
+        core_of[r] = static_cast<int>(r) % cores;
+    return replay_time_shared(cpu_s, core_of, slice_s, steps, tick_s);
+}
+
+ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s,
+                                const std::vector<int> &core_of, double slice_s, int steps,
+                                double tick_s) {
     const int P = static_cast<int>(cpu_s.size());
-    if (P < 1 || cores < 1 || !(slice_s > 0) || !(tick_s > 0) || steps < 3)
-        throw std::invalid_argument("replay_time_shared: expected ranks >= 1, cores >= 1, a "
-                                    "slice and a tick > 0 and steps >= 3");
+    if (P < 1 || core_of.size() != cpu_s.size() ||
+        std::any_of(core_of.begin(), core_of.end(), [](int c) { return c < 0; }) ||
+        !(slice_s > 0) || !(tick_s > 0) || steps < 3)
+        throw std::invalid_argument("replay_time_shared: expected ranks >= 1, a core index >= 0 "
+                                    "per rank, a slice and a tick > 0 and steps >= 3");
+    const int cores = *std::max_element(core_of.begin(), core_of.end()) + 1;
     constexpr int warm = 2;
-    // Per rank the ops of one step: compute segment k (call index -1), then its exchange.
+    // Per rank the ops of one step: compute segment k (call index -1), then its exchange k.
     struct Op {
         int segment; // >= 0: compute; -1: a call
         Call call;
+        int shift; // the exchange a call belongs to
     };
     std::vector<std::vector<Op>> prog(static_cast<std::size_t>(P));
     for (int r = 0; r < P; ++r) {
         const int west = r > 0 ? r - 1 : -1, east = r + 1 < P ? r + 1 : -1;
         auto &ops = prog[static_cast<std::size_t>(r)];
         for (int k = 0; k < 3; ++k) {
-            ops.push_back({k, {}});
-            ops.push_back({-1, {east, west, false}});
-            ops.push_back({-1, {west, east, false}});
+            ops.push_back({k, {}, k});
+            ops.push_back({-1, {east, west, false}, k});
+            ops.push_back({-1, {west, east, false}, k});
             for (int i = 0; i < 2; ++i)
-                ops.push_back({-1, {east, west, true}});
+                ops.push_back({-1, {east, west, true}, k});
             for (int i = 0; i < 2; ++i)
-                ops.push_back({-1, {west, east, true}});
+                ops.push_back({-1, {west, east, true}, k});
         }
     }
     const std::size_t nops = prog[0].size();
@@ -111,7 +126,7 @@ ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s,
     std::vector<char> posted(static_cast<std::size_t>(P), 0);
     std::vector<std::vector<int>> on_core(static_cast<std::size_t>(cores));
     for (int r = 0; r < P; ++r)
-        on_core[static_cast<std::size_t>(r % cores)].push_back(r);
+        on_core[static_cast<std::size_t>(core_of[static_cast<std::size_t>(r)])].push_back(r);
     std::vector<int> running(static_cast<std::size_t>(cores), -1);
     std::vector<double> held(static_cast<std::size_t>(cores), 0);
     for (int c = 0; c < cores; ++c)
@@ -120,6 +135,7 @@ ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s,
     ReplayedStep out;
     out.wait_s.assign(static_cast<std::size_t>(P), 0);
     out.comm_s.assign(static_cast<std::size_t>(P), 0);
+    out.shift_comm_s.assign(static_cast<std::size_t>(P), {0.0, 0.0, 0.0});
     // Runs rank r for up to `budget` seconds of CPU; true when it gives its core away.
     auto run = [&](int r, double budget) {
         const auto u = static_cast<std::size_t>(r);
@@ -181,19 +197,27 @@ ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s,
             t_start = t;
             std::fill(out.wait_s.begin(), out.wait_s.end(), 0.0);
             std::fill(out.comm_s.begin(), out.comm_s.end(), 0.0);
+            std::fill(out.shift_comm_s.begin(), out.shift_comm_s.end(),
+                      std::array<double, 3>{0.0, 0.0, 0.0});
         }
         for (int r = 0; r < P; ++r) {
             const auto u = static_cast<std::size_t>(r);
             if (step[u] >= steps)
                 continue;
             const Op &op = prog[u][pc[u]];
-            if (op.segment < 0)
-                (op.call.comm ? out.comm_s : out.wait_s)[u] += tick_s;
+            if (op.segment >= 0)
+                continue;
+            (op.call.comm ? out.comm_s : out.wait_s)[u] += tick_s;
+            if (op.call.comm)
+                out.shift_comm_s[u][static_cast<std::size_t>(op.shift)] += tick_s;
         }
     }
     const double n = steps - warm;
     for (auto *v : {&out.wait_s, &out.comm_s})
         for (double &x : *v)
+            x /= n;
+    for (auto &a : out.shift_comm_s)
+        for (double &x : a)
             x /= n;
     out.step_s = (t - t_start) / n;
     return out;

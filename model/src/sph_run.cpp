@@ -41,6 +41,9 @@ void from_json(const json &j, RankStats &r) {
     r.messages = figure(j, "messages");
     r.message_bytes = figure(j, "message_bytes");
     r.comm_predict_s = figure(j, "comm_predict_s");
+    r.comm_predict_exchange_s = j.contains("comm_predict_exchange_s")
+                                    ? figure(j, "comm_predict_exchange_s")
+                                    : r.comm_predict_s;
     // Reports before the exchange benchmark predicted by Hockney alone.
     r.comm_hockney_s =
         j.contains("comm_hockney_s") ? figure(j, "comm_hockney_s") : r.comm_predict_s;

@@ -134,7 +134,7 @@ int run(int argc, char **argv) {
            "--replay-slice-ms", [&q](double ms) { q.replay_slice_s = ms * 1e-3; },
            "With --time-sharing-overhead replay: the scheduler slice of a computing rank, ms "
            "(default 1.5: the kernel's EEVDF base slice on 2 CPUs)")
-        ->check(CLI::PositiveNumber);
+        ->check(FinitePositive);
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

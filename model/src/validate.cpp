@@ -54,6 +54,9 @@ json validate(const json &header, const std::vector<json> &predictions,
         memory_errors;
     // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
     std::vector<double> own_kind_errors;
+    // The inline errors by the exchange benchmark alone (the inline prediction above the cores
+    // before session 40's replay): the untuned comparison.
+    std::vector<double> exchange_errors;
     // Inline errors of the intervals whose latency probe found the machine in the mode the
     // profile was measured in, and the others. Measured on this VM (session 19): the app's
     // probe reads 1.4x the benchmark's figure in the same mode, and the two modes differ 2.5x;
@@ -124,10 +127,12 @@ json validate(const json &header, const std::vector<json> &predictions,
                 double mc = 0, ic = 0, hc = 0, pc = 0, probe = 0, probed = 0;
                 sph::ShiftTimes ms{}, is{};
                 double ic_own_kind = 0; // inline, by the rule before session 32
+                double ic_exchange = 0; // inline, by the exchange benchmark alone
                 for (const auto &r : m.intervals[k].ranks) {
                     mc += r.timer("comm_s");
                     ic += r.comm_predict_s;
                     ic_own_kind += r.comm_predict_s;
+                    ic_exchange += r.comm_predict_exchange_s;
                     hc += r.comm_hockney_s;
                     for (std::size_t s = 0; s < ms.size(); ++s) {
                         ms[s] += r.shift_comm_s[s];
@@ -152,6 +157,8 @@ json validate(const json &header, const std::vector<json> &predictions,
                     inline_comm_errors.push_back(std::abs(rel(ic, mc)));
                     e["inline_own_kind_gap_error"] = rel(ic_own_kind, mc);
                     own_kind_errors.push_back(std::abs(rel(ic_own_kind, mc)));
+                    e["inline_exchange_error"] = rel(ic_exchange, mc);
+                    exchange_errors.push_back(std::abs(rel(ic_exchange, mc)));
                 }
                 // Reports that split comm by exchange; a kind this run never sent is left out.
                 for (std::size_t s = 0; s < ms.size(); ++s)
@@ -268,6 +275,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"inline_comm_abs_error_per_interval_other_mode", summary(other_mode_errors)},
         {"inline_comm_abs_error_per_interval_by_shift", by_shift},
         {"inline_comm_abs_error_per_interval_own_kind_gap", summary(own_kind_errors)},
+        {"inline_comm_abs_error_per_interval_exchange_benchmark", summary(exchange_errors)},
         {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
         {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
         {"peak_rss_abs_error", summary(memory_errors)},
@@ -426,6 +434,12 @@ std::string validation_table(const json &v) {
         s += fmt("    the same, blocking shifts at the gap since their own kind (the rule before "
                  "session 32): median %.1f%%\n",
                  100 * d(sm.at("inline_comm_abs_error_per_interval_own_kind_gap").at("median")));
+    if (sm.contains("inline_comm_abs_error_per_interval_exchange_benchmark") &&
+        !sm.at("inline_comm_abs_error_per_interval_exchange_benchmark").is_null())
+        s += fmt(
+            "    the same, above the cores by the exchange benchmark instead of the step "
+            "replayed (before session 40): median %.1f%%\n",
+            100 * d(sm.at("inline_comm_abs_error_per_interval_exchange_benchmark").at("median")));
     if (sm.contains("inline_comm_abs_error_per_interval_by_shift")) {
         std::string parts;
         for (const auto key : sph::shift_keys) {

@@ -18,8 +18,9 @@ namespace sphperf::sph {
 
 namespace {
 constexpr char rank_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'K', '1'};
-// 2: the rank records split comm by exchange (RankInterval::fields changed).
-constexpr char record_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'C', '2'};
+// 2: the rank records split comm by exchange (RankInterval::fields changed); 3: they carry the
+// CPU time before each shift and the exchange benchmark's prediction apart.
+constexpr char record_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'C', '3'};
 
 // Native-endian binary writer: the files are read back by the same build on the same machine
 // (the manifest's commit is checked), so no portable encoding is needed.

@@ -3,6 +3,7 @@
 #include "sphperf/cli.hpp"
 #include "sphperf/model/comm_model.hpp"
 #include "sphperf/model/memory.hpp"
+#include "sphperf/model/placement.hpp"
 #include "sphperf/model/profile.hpp"
 #include "sphperf/model/runtime.hpp"
 #include "sphperf/report.hpp"
@@ -14,6 +15,7 @@
 #include <mpi.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -67,6 +69,13 @@ Config parse(int argc, char **argv) {
                    "shifts with it instead of the machine profile's (measure it right before the "
                    "run where exchange costs drift, see model/README.md)")
         ->check(CLI::ExistingFile)
+        ->needs(o_machine);
+    app.add_option("--replay-slice-ms", cfg.replay_slice_ms,
+                   "With --machine above the cores (one-thread ranks on one node, blocking "
+                   "exchanges): the scheduler slice, in ms, of the time-shared step's replay that "
+                   "predicts comm_predict_s (1.5: the kernel's EEVDF base slice here; tuned, "
+                   "model/README.md)")
+        ->check(FinitePositive)
         ->needs(o_machine);
     app.add_option("--vtk", cfg.vtk_dir, "Write ParaView snapshots (.vtu + sph.pvd) here");
     app.add_option("--vtk-every", cfg.vtk_every, "Steps between snapshots")
@@ -343,6 +352,54 @@ void print_summary(const nlohmann::json &r) {
                 ph["time_s"].back().get<double>());
 }
 
+// Above the cores the exchange benchmark (every rank the same work) cannot say which rank the
+// scheduler parks: each interval's inline prediction is then the step replayed from every
+// rank's measured CPU time before each shift (model::replay_time_shared), each rank on the core
+// its unit belongs to. One-thread ranks on one node with blocking exchanges only; otherwise the
+// exchange benchmark's stands. Run on rank 0 after the run, so it perturbs no step.
+void replay_time_shared_comm(RunRecord &rec, const Config &cfg, int threads) {
+    rec.comm_predict_source = "exchange benchmark";
+    const auto &pus = rec.placement_pus;
+    const auto &nodes = rec.placement_nodes;
+    if (threads != 1 || cfg.overlap || pus.size() < 2 ||
+        std::any_of(pus.begin(), pus.end(), [](int p) { return p < 0; }) ||
+        std::any_of(nodes.begin(), nodes.end(), [&](const auto &n) { return n != nodes[0]; }))
+        return;
+    const Topology topo;
+    std::vector<int> core_of(pus.size());
+    int cores = 0;
+    bool shared = false;
+    for (std::size_t r = 0; r < pus.size(); ++r) {
+        core_of[r] = -1;
+        for (std::size_t q = 0; q < r && core_of[r] < 0; ++q)
+            if (topo.classify(pus[q], pus[r]) == Locality::same_core)
+                core_of[r] = core_of[q];
+        shared = shared || core_of[r] >= 0;
+        if (core_of[r] < 0)
+            core_of[r] = cores++;
+    }
+    if (!shared)
+        return;
+    rec.comm_predict_source = "time-shared step replayed";
+    for (auto &iv : rec.intervals) {
+        std::vector<std::array<double, 3>> cpu;
+        for (const auto &r : iv.ranks) {
+            const double n = std::max(r.steps, 1.0);
+            cpu.push_back({r.segment_cpu_s[0] / n, r.segment_cpu_s[1] / n, r.segment_cpu_s[2] / n});
+        }
+        const auto rep = model::replay_time_shared(cpu, core_of, 1e-3 * cfg.replay_slice_ms);
+        for (std::size_t r = 0; r < iv.ranks.size(); ++r) {
+            auto &ri = iv.ranks[r];
+            ri.comm_predict_s = 0;
+            for (std::size_t k = 0; k < ri.shift_predict_s.size(); ++k) {
+                ri.shift_predict_s[k] = ri.shift_predict_own_kind_s[k] =
+                    rep.shift_comm_s[r][k] * ri.steps;
+                ri.comm_predict_s += ri.shift_predict_s[k];
+            }
+        }
+    }
+}
+
 void simulate(const Config &cfg, const Geometry &geo, int rank) {
     Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
     const std::vector<int> pus = domain.gather_int(bound_pu());
@@ -354,6 +411,8 @@ void simulate(const Config &cfg, const Geometry &geo, int rank) {
     rec.placement_pus = pus;
     rec.profile_probe_shift_s = profile_probe_s;
     rec.placement_nodes = domain.gather_string(node_name());
+    if (rank == 0 && cfg.machine)
+        replay_time_shared_comm(rec, cfg, omp_get_max_threads());
     if (rank == 0) {
         const Topology topo;
         const nlohmann::json report = build_report(rec, topo);

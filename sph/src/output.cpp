@@ -176,6 +176,10 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     j["machine"] = c.machine ? nlohmann::json(c.machine->string()) : nlohmann::json();
     j["exchange_report"] = c.exchange ? nlohmann::json(c.exchange->string()) : nlohmann::json();
     j["profile_probe_shift_s"] = run.profile_probe_shift_s;
+    j["comm_predict_source"] = run.comm_predict_source.empty()
+                                   ? nlohmann::json()
+                                   : nlohmann::json(run.comm_predict_source);
+    j["replay_slice_s"] = 1e-3 * c.replay_slice_ms;
     j["initial_columns"] = run.initial_columns;
     j["wall_columns"] = run.wall_columns;
     {
@@ -226,6 +230,7 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"messages", r.messages},
                               {"message_bytes", r.message_bytes},
                               {"comm_predict_s", r.comm_predict_s},
+                              {"comm_predict_exchange_s", r.comm_predict_exchange_s},
                               {"comm_hockney_s", r.comm_hockney_s},
                               {"overlap_s", r.overlap_s},
                               {"comm_hidden_predict_s", r.hidden_predict_s},
@@ -239,7 +244,8 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                 jr["shifts"][shift_keys[k]] = {
                     {"comm_s", r.shift_comm_s[k]},
                     {"comm_predict_s", r.shift_predict_s[k]},
-                    {"comm_predict_own_kind_gap_s", r.shift_predict_own_kind_s[k]}};
+                    {"comm_predict_own_kind_gap_s", r.shift_predict_own_kind_s[k]},
+                    {"cpu_before_s", r.segment_cpu_s[k]}};
             jiv["ranks"].push_back(jr);
         }
         j["intervals"].push_back(jiv);

@@ -620,7 +620,10 @@ TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
 
 // With the exchange benchmark in the profile, each interval within the cores probes the latency
 // mode (not counted as messages), beside the profile's figure for it; above the cores a
-// back-to-back shift waits for descheduled neighbours, so nothing is probed.
+// back-to-back shift waits for descheduled neighbours, so nothing is probed. Within the cores the
+// inline prediction is the exchange benchmark's; above them (3 ranks on 2 cores) it is the step
+// replayed from each rank's CPU time before each shift, exactly as replay_time_shared gives it
+// from the report's own figures, the benchmark's kept beside it.
 TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
     const auto dir = scratch("latency_probe");
     const auto machine = dir / "machine.json";
@@ -645,6 +648,46 @@ TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
             EXPECT_EQ(messages, 2 * 20 * 3 * 2); // the app's own messages only
         } else {
             EXPECT_EQ(j["profile_probe_shift_s"].get<double>(), 0);
+        }
+        EXPECT_EQ(j["replay_slice_s"].get<double>(), 1.5e-3);
+        const bool shared = j["placement_pus"] == nlohmann::json{0, 1, 0};
+        EXPECT_EQ(j["comm_predict_source"].get<std::string>(),
+                  ranks == 2 || !shared ? "exchange benchmark" : "time-shared step replayed")
+            << j["placement_pus"];
+        for (const auto &iv : j["intervals"]) {
+            std::vector<std::array<double, 3>> cpu;
+            for (const auto &rk : iv["ranks"]) {
+                const double n = rk["steps"].get<double>();
+                std::array<double, 3> c{};
+                for (std::size_t k = 0; k < 3; ++k)
+                    c[k] = rk["shifts"][std::string(sphperf::sph::shift_keys[k])]["cpu_before_s"]
+                               .get<double>() /
+                           n;
+                // Every rank computes between its shifts: the ghosts and densities are
+                // made after a pass over its particles.
+                EXPECT_GT(c[2], 0);
+                cpu.push_back(c);
+                EXPECT_GT(rk["comm_predict_exchange_s"].get<double>(), 0);
+                if (ranks == 2)
+                    EXPECT_EQ(rk["comm_predict_s"], rk["comm_predict_exchange_s"]);
+            }
+            if (ranks == 2 || !shared)
+                continue;
+            const auto rep = sphperf::model::replay_time_shared(cpu, {0, 1, 0}, 1.5e-3);
+            for (std::size_t r = 0; r < cpu.size(); ++r) {
+                const auto &rk = iv["ranks"][r];
+                const double n = rk["steps"].get<double>();
+                double sum = 0;
+                for (std::size_t k = 0; k < 3; ++k) {
+                    const double p =
+                        rk["shifts"][std::string(sphperf::sph::shift_keys[k])]["comm_predict_s"]
+                            .get<double>();
+                    EXPECT_NEAR(p, rep.shift_comm_s[r][k] * n, 1e-12) << r << " " << k;
+                    sum += p;
+                }
+                EXPECT_NEAR(rk["comm_predict_s"].get<double>(), sum, 1e-12);
+                EXPECT_NEAR(sum, rep.comm_s[r] * n, 1e-9);
+            }
         }
     }
 }

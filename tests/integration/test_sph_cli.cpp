@@ -280,6 +280,12 @@ INSTANTIATE_TEST_SUITE_P(
         SphBadInput{"inf_scale", "--scale inf --steps 1",
                     "--scale: value inf is not a finite number > 0"},
         SphBadInput{"zero_threads", "--threads 0 --steps 1", "--threads"},
+        SphBadInput{"replay_slice_zero",
+                    "--replay-slice-ms 0 --machine " SPHPERF_RESULTS_DIR
+                    "/reference/vm/machine.json --steps 1",
+                    "--replay-slice-ms: value 0"},
+        SphBadInput{"replay_slice_without_machine", "--replay-slice-ms 2 --steps 1",
+                    "--replay-slice-ms requires --machine"},
         SphBadInput{"steps_overflow", "--steps 99999999999999999999", "--steps"},
         SphBadInput{"restart_missing_dir", "--steps 1 --restart /nonexistent_ck",
                     "/nonexistent_ck"}),

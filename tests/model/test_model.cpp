@@ -565,6 +565,23 @@ TEST(Placement, ReplayedStepParksTheRankBesideTheBusyOne) {
     const auto shared = replay_time_shared({ms, ms}, 1, 1.5e-3);
     EXPECT_GT(shared.step_s, 0.99 * 6e-3);
     EXPECT_LT(shared.step_s, 1.1 * 6e-3);
+    // By exchange: the parked rank's transfers sum to its comm, and the placement given rank
+    // by rank is the round-robin one's when it is the same.
+    double by_shift = 0;
+    for (double x : three.shift_comm_s[2])
+        by_shift += x;
+    EXPECT_NEAR(by_shift, three.comm_s[2], 1e-12);
+    const auto placed = replay_time_shared(dam, std::vector<int>{0, 1, 0}, 1.5e-3);
+    EXPECT_EQ(placed.comm_s, three.comm_s);
+    EXPECT_EQ(placed.step_s, three.step_s);
+    // Ranks 0 and 1 on one core, rank 2 alone: the step is now their summed compute, and rank
+    // 1 spends most of it in its exchanges.
+    const auto other = replay_time_shared(dam, std::vector<int>{0, 0, 1}, 1.5e-3);
+    EXPECT_GT(other.step_s, 0.99 * (11.66e-3 + 2.16e-3));
+    EXPECT_GT(other.comm_s[1] + other.wait_s[1], 0.5 * other.step_s);
+    EXPECT_THROW(replay_time_shared(dam, std::vector<int>{0, -1, 0}, 1.5e-3),
+                 std::invalid_argument);
+    EXPECT_THROW(replay_time_shared(dam, std::vector<int>{0, 1}, 1.5e-3), std::invalid_argument);
     EXPECT_THROW(replay_time_shared({}, 2, 1.5e-3), std::invalid_argument);
     EXPECT_THROW(replay_time_shared({ms}, 2, 0.0), std::invalid_argument);
     EXPECT_THROW(replay_time_shared({ms}, 0, 1.5e-3), std::invalid_argument);

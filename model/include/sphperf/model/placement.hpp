@@ -44,18 +44,27 @@ std::optional<LinearFit> fit_sharing_overhead(std::span<const double> compute_pe
                                               double min_span = 2.0);
 
 // The time-shared step replayed (session 39, model/README.md; predict --time-sharing-overhead
-// replay): one-thread ranks bound round-robin to `cores` cores, each step three segments of CPU
+// replay): one-thread ranks, rank r bound to core core_of[r], each step three segments of CPU
 // work (cpu_s[r]: before the migration, the ghost and the density exchange), each followed by
 // its exchange as the app makes it (a zero-byte handshake east then west: wait; counts and
 // payloads east then west: comm). A computing rank keeps its core until its segment ends or
 // `slice_s` has passed since it took the core; a rank in MPI yields its core while the message
 // it waits for has not arrived; sends complete at once. Replays `steps` steps (the first two
-// not counted) in ticks of `tick_s` and returns each rank's wait and comm per step and the step.
-// Throws std::invalid_argument on no rank, cores < 1, slice or tick <= 0, or steps < 3.
+// not counted) in ticks of `tick_s` and returns each rank's wait and comm per step (comm also
+// per exchange) and the step. The transfers themselves cost nothing here: what it gives is the
+// time a rank spends parked in its exchanges.
+// Throws std::invalid_argument on no rank, a core index < 0 or of another length, slice or
+// tick <= 0, or steps < 3.
 struct ReplayedStep {
-    std::vector<double> wait_s, comm_s; // per rank, per step
+    std::vector<double> wait_s, comm_s;              // per rank, per step
+    std::vector<std::array<double, 3>> shift_comm_s; // comm_s split by exchange
     double step_s = 0;
 };
+ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s,
+                                const std::vector<int> &core_of, double slice_s, int steps = 20,
+                                double tick_s = 5e-6);
+// The same with the ranks bound round-robin to `cores` cores (scripts/mpirun.sh above the
+// cores); throws std::invalid_argument on cores < 1.
 ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s, int cores,
                                 double slice_s, int steps = 20, double tick_s = 5e-6);
 

@@ -16,6 +16,9 @@ struct RankStats {
     double steps = 0, field = 0, field_mean = 0, virtual_ = 0, ghost = 0, pairs = 0;
     double interactions = 0, exported = 0, migrated = 0, cell_moves = 0, idle_s = 0;
     double messages = 0, message_bytes = 0, comm_predict_s = 0, comm_hockney_s = 0;
+    // comm_predict_s by the exchange benchmark alone (above the cores comm_predict_s is the step
+    // replayed since session 40); older reports: their comm_predict_s
+    double comm_predict_exchange_s = 0;
     double descents = 0; // neighbours found out of id order per step (the id sort's work)
     // sph --overlap: compute run while ghost transfers were in flight, and the predicted
     // transfer time it hid (inline, sph --machine); 0 in blocking runs.

@@ -112,6 +112,9 @@ struct Config {
     // An exchange benchmark report that costs the shifts in place of the profile's (one measured
     // right before the run, on a machine whose exchange costs drift).
     std::optional<std::filesystem::path> exchange;
+    // Above the cores (--machine): the scheduler slice of the replay that predicts the
+    // time-shared step's transfers (sph/README.md; 1.5 ms, tuned, model/README.md).
+    double replay_slice_ms = 1.5;
     std::optional<std::filesystem::path> vtk_dir;
     int vtk_every = 0;
     bool quiet = false;

@@ -47,11 +47,13 @@ struct ExchangeCounts {
 // each (they sum to predicted_s), shift_predict_own_kind_s the same by the rule before session
 // 32 (ShiftPrediction). With --overlap also the compute that ran while transfers were in
 // flight (`overlap_s`) and, when costs are attached, the predicted part of those transfers it hid
-// (`hidden_predict_s`).
+// (`hidden_predict_s`). segment_cpu_s: the CPU time this rank's thread spent between the end of
+// its previous blocking shift and the start of each blocking shift (its compute before the
+// migration, the ghosts and the densities), what a time-shared step's replay takes in.
 struct CommTally {
     double messages = 0, bytes = 0, hockney_s = 0, predicted_s = 0;
     double overlap_s = 0, hidden_predict_s = 0;
-    ShiftTimes shift_s{}, shift_predict_s{}, shift_predict_own_kind_s{};
+    ShiftTimes shift_s{}, shift_predict_s{}, shift_predict_own_kind_s{}, segment_cpu_s{};
 };
 
 // Ghosts on their way (--overlap): how many will arrive from each side.
@@ -191,6 +193,7 @@ private:
     // (model::ExchangeModel::app_shift_seconds).
     double last_any_end_s_ = 0;
     ShiftTimes last_kind_end_s_{};
+    double last_end_cpu_s_ = -1; // the thread's CPU time then (-1: no shift yet)
     double &last_end(int tag) { return last_kind_end_s_[shift_index(tag)]; }
     static std::size_t shift_index(int tag);
     // The gaps since both, at `now`, as the shift cost takes them; 0 before the first.

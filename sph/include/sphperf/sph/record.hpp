@@ -14,22 +14,25 @@ namespace sphperf::sph {
 // One rank over one report interval. Counts are means per step unless noted.
 struct RankInterval {
     double steps = 0;
-    double field = 0;            // fluid particles owned at the end of the interval
-    double virtual_ = 0;         // mirror particles made (mirror) or wall particles owned (fixed)
-    double ghost = 0;            // ghost particles received
-    double pairs = 0;            // unordered interacting pairs found
-    double interactions = 0;     // ordered pairs (i, j) contributing to an owned particle i
-    double exported = 0;         // particles sent as ghosts
-    double migrated = 0;         // particles that left this rank, total over the interval
-    double cell_moves = 0;       // particles (re)filed in a cell
-    double idle_s = 0;           // time with no fluid particle to work on
-    double escaped = 0;          // fluid particles outside the tank (through a wall or the floor)
-    double reflected = 0;        // mirror boundary: particles reflected back at a wall, total
-    double field_mean = 0;       // fluid particles owned, mean over the interval's steps
-    double messages = 0;         // MPI messages sent, total (counts and payloads)
-    double message_bytes = 0;    // their payload bytes, total
-    double comm_predict_s = 0;   // predicted time of those transfers (sph --machine), total
-    double comm_hockney_s = 0;   // ... by ping-pong Hockney alone (thesis T_COMM_PREDICT)
+    double field = 0;          // fluid particles owned at the end of the interval
+    double virtual_ = 0;       // mirror particles made (mirror) or wall particles owned (fixed)
+    double ghost = 0;          // ghost particles received
+    double pairs = 0;          // unordered interacting pairs found
+    double interactions = 0;   // ordered pairs (i, j) contributing to an owned particle i
+    double exported = 0;       // particles sent as ghosts
+    double migrated = 0;       // particles that left this rank, total over the interval
+    double cell_moves = 0;     // particles (re)filed in a cell
+    double idle_s = 0;         // time with no fluid particle to work on
+    double escaped = 0;        // fluid particles outside the tank (through a wall or the floor)
+    double reflected = 0;      // mirror boundary: particles reflected back at a wall, total
+    double field_mean = 0;     // fluid particles owned, mean over the interval's steps
+    double messages = 0;       // MPI messages sent, total (counts and payloads)
+    double message_bytes = 0;  // their payload bytes, total
+    double comm_predict_s = 0; // predicted time of those transfers (sph --machine), total;
+                               // above the cores the step replayed (sph/README.md)
+    double comm_predict_exchange_s = 0; // ... by the exchange benchmark alone (the inline
+                                        // prediction before session 40), total
+    double comm_hockney_s = 0;          // ... by ping-pong Hockney alone (thesis T_COMM_PREDICT)
     double descents = 0;         // neighbours found right after one of larger id (id sort work):
                                  // grows as the particles' memory order decays; 0 for sorted
     double rss_bytes = 0;        // resident set size at the interval's end (soak: stays flat)
@@ -40,6 +43,7 @@ struct RankInterval {
     ShiftTimes shift_comm_s{};    // comm_s split by exchange (migration, ghosts, densities)
     ShiftTimes shift_predict_s{}; // comm_predict_s split the same way
     ShiftTimes shift_predict_own_kind_s{}; // ... by the rule before session 32 (domain.hpp)
+    ShiftTimes segment_cpu_s{};            // CPU time before each blocking shift, total (CommTally)
     // comm_s of the ghost and density exchanges (the ones --overlap overlaps)
     double halo_comm_s() const {
         return shift_comm_s[static_cast<std::size_t>(Shift::ghosts)] +
@@ -47,7 +51,7 @@ struct RankInterval {
     }
 
     static constexpr std::size_t fields =
-        22 + static_cast<std::size_t>(Phase::count) + 3 * static_cast<std::size_t>(Shift::count);
+        23 + static_cast<std::size_t>(Phase::count) + 4 * static_cast<std::size_t>(Shift::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };
@@ -101,6 +105,10 @@ struct RunRecord {
     // The machine profile's figure for the latency probe (the exchange benchmark's gap-0
     // 64-byte shift at this load); 0 when the run does not probe.
     double profile_probe_shift_s = 0;
+    // What comm_predict_s is: "exchange benchmark" (within the cores), "time-shared step
+    // replayed" (above them, one-thread ranks on one node, blocking exchanges); empty without
+    // --machine.
+    std::string comm_predict_source;
     std::int64_t restarted_from_step = -1; // the checkpoint's step, -1: not a restart
     std::filesystem::path restarted_from;  // its directory
 };

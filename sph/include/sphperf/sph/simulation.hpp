@@ -675,6 +675,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         acc_.messages += tally.messages;
         acc_.message_bytes += tally.bytes;
         acc_.comm_predict_s += tally.predicted_s;
+        acc_.comm_predict_exchange_s += tally.predicted_s;
         acc_.comm_hockney_s += tally.hockney_s;
         acc_.overlap_s += tally.overlap_s;
         acc_.hidden_predict_s += tally.hidden_predict_s;
@@ -682,6 +683,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
             acc_.shift_comm_s[k] += tally.shift_s[k];
             acc_.shift_predict_s[k] += tally.shift_predict_s[k];
             acc_.shift_predict_own_kind_s[k] += tally.shift_predict_own_kind_s[k];
+            acc_.segment_cpu_s[k] += tally.segment_cpu_s[k];
         }
         for (std::size_t k = 0; k < acc_.timers.size(); ++k)
             acc_.timers[k] += step_timers_.values()[k];
