@@ -271,7 +271,7 @@ validate_run --repeat "$short_repeats" 2 val_still_s1_sorted_overlap_r2 --setup 
 # The model sees the calibration runs only; the validation reports are read after predicting.
 # model_and_validate DIR RULE PROFILE [WEIGHTS [SHARING]]: calibrate with the compute-cost term
 # rule RULE, the time profile PROFILE and the fit weights WEIGHTS (relative unless given),
-# predict with the time-sharing overhead SHARING (per-step unless given), validate; with the
+# predict with the time-sharing form SHARING (replay unless given), validate; with the
 # reports listed in the arrays cal_reports and val_reports.
 # The model's calibration runs: round a, and Cell+Sorted's round b; not the 2-thread dam breaks at
 # scale 0.35 (two-thread-scales/), round c or round b's list and table runs (more-runs/).
@@ -281,7 +281,7 @@ model_runs() {
 mapfile -t cal_reports < <(model_runs)
 val_reports=("$runs"/val_*.json)
 model_and_validate() {
-    local dir=$1 rule=$2 profile=$3 weights=${4:-relative} sharing=${5:-per-step}
+    local dir=$1 rule=$2 profile=$3 weights=${4:-relative} sharing=${5:-replay}
     local predict_extra=()
     [ -n "${6:-}" ] && read -r -a predict_extra <<<"$6"
     mkdir -p "$dir"
@@ -335,9 +335,10 @@ model_and_validate() {
 # and the Froude-time profile (session 16) after seeing the scale-1 dam-break errors: both are
 # tuned, and so are the relative fit weights (session 31, after seeing the 2-thread dam break's
 # errors), and the time-sharing overhead per step (session 34, after seeing the 3-rank still
-# tanks' errors). The same runs go through the models before them too: with absolute weights
-# (session 30's model), with the overhead as a ratio (session 33's), without the profile
-# (session 15's) and with neither (the untuned rule).
+# tanks' errors), and the replayed time-shared step in its place (session 40, after seeing
+# sessions 36-40's runs). The same runs go through the models before them too: with absolute
+# weights (session 30's model), with the overhead as a ratio (session 33's), per step (sessions
+# 34-39's), without the profile (session 15's) and with neither (the untuned rule).
 model_and_validate "$out" levelled-one-se froude
 if [ "$short_repeats" -gt 1 ]; then
     # The same model validated with each repeated configuration's first run in place of its
@@ -367,10 +368,10 @@ if ls "$runs"/cal_dambreak_s0.35_sorted_t2_*.json >/dev/null 2>&1; then
 fi
 model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null
 model_and_validate "$out/ratio-overhead" levelled-one-se froude relative ratio >/dev/null
-# The time-shared steps replayed instead of the overhead (session 39, a prototype beside the
-# model: model/README.md).
-model_and_validate "$out/time-shared-replay" levelled-one-se froude relative replay >/dev/null
-# ... at the 4 ms tick a parked rank sees (measured; the slice above was preferred to it).
+# The time-sharing overhead per step instead of the replayed step (sessions 34-39's model; the
+# replay is the model since session 40: model/README.md).
+model_and_validate "$out/per-step-overhead" levelled-one-se froude relative per-step >/dev/null
+# The replay at the 4 ms tick a parked rank sees (measured; the 1.5 ms slice was preferred to it).
 model_and_validate "$out/time-shared-replay-4ms" levelled-one-se froude relative replay \
     "--replay-slice-ms 4" >/dev/null
 model_and_validate "$out/no-profile" levelled-one-se none absolute >/dev/null

@@ -274,7 +274,15 @@ def exchange_drift(folder, model):
     return text + "; a profile measured once stands for one of them."
 
 
+def sharing_in_use(d):
+    """The time-sharing form the predictions of folder d used (predict --time-sharing-overhead)."""
+    for path in sorted(glob.glob(os.path.join(d, "prediction_*.json"))):
+        return load(path).get("request", {}).get("time_sharing_overhead", "per-step")
+    return "per-step"
+
+
 def markdown(model, validation, args, out):
+    replaying = sharing_in_use(args.dir) == "replay"
     lines = ["# Validation of the SPH runtime model", ""]
     lines.append(f"Host `{validation.get('host')}`, commit `{validation.get('git_commit')}`, "
                  f"{validation.get('timestamp')}.")
@@ -308,7 +316,11 @@ def markdown(model, validation, args, out):
                             if "shared_compute_s_per_step" in r else "") + ")" for r in t["runs"])
         fit = t.get("overhead_fit")
         uses = (f"the model adds the median, {1e3 * t['overhead_s_per_step']:.3f} ms per step on a "
-                f"shared core")
+                f"shared core") if not replaying else (
+                f"the per-step form adds the median, {1e3 * t['overhead_s_per_step']:.3f} ms per step "
+                f"on a shared core where the model cannot replay the step (ranks of 2 or more threads, "
+                f"several nodes; predict --time-sharing-overhead per-step everywhere, the model of "
+                f"sessions 34-39)")
         if fit and fit.get("significant"):
             uses += (f" (predict --time-sharing-overhead line would add the line fitted through "
                      f"them, {1e3 * fit['intercept_s_per_step']:.3f} "
@@ -394,9 +406,10 @@ def markdown(model, validation, args, out):
             (any("overhead_s_per_step" in t for t in model.get("time_sharing", [])),
              "ratio-overhead",
              "Time-sharing overhead added in seconds per step on a shared core (predict "
-             "--time-sharing-overhead per-step), chosen in session 34 after the table still tank on 3 "
-             "ranks came out 2-16 % high in 13 of 14 main jobs: **tuned**. As a ratio on the shared core's "
-             "compute (the model before) on the same runs: {o} (ratio-overhead/validation.json)."),
+             "--time-sharing-overhead per-step; since session 40 only where the step is not replayed), "
+             "chosen in session 34 after the table still tank on 3 ranks came out 2-16 % high in 13 of "
+             "14 main jobs: **tuned**. As a ratio on the shared core's compute (the model before it, "
+             "everywhere above the cores) on the same runs: {o} (ratio-overhead/validation.json)."),
             (not any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
              "more-runs",
              "Calibrated on the runs of round a and Cell+Sorted's of round b only, chosen in "
@@ -482,8 +495,13 @@ def markdown(model, validation, args, out):
     if s["model_comm_abs_error_per_interval"]:
         lines.append(f"Communication, model prediction from the predicted workload: median per-interval "
                      f"|error| {100 * s['model_comm_abs_error_per_interval']['median']:.1f} %.")
+    per_step = os.path.join(args.dir, "per-step-overhead", "validation.json")
     replay = os.path.join(args.dir, "time-shared-replay", "validation.json")
-    if os.path.exists(replay):
+    if replaying and os.path.exists(per_step):
+        tick = os.path.join(args.dir, "time-shared-replay-4ms", "validation.json")
+        lines.append(replay_in_use_line(validation, load(per_step),
+                                        load(tick) if os.path.exists(tick) else None))
+    elif os.path.exists(replay):
         tick = os.path.join(args.dir, "time-shared-replay-4ms", "validation.json")
         lines.append(time_shared_replay_line(validation, load(replay),
                                              load(tick) if os.path.exists(tick) else None))
@@ -522,6 +540,48 @@ def markdown(model, validation, args, out):
     lines.append(f"Roofline: {model['roofline']['verdict']}.")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
+
+
+def shared_errors(v):
+    """Wall |error| of the configurations above the cores and the model's per-interval comm error
+    over their intervals."""
+    confs = [c for c in v["configurations"] if c.get("oversubscribed")]
+    walls = sorted(abs(c["wall_error"]) for c in confs)
+    comm = sorted(abs(e["model_error"]) for c in confs for e in c["comm_series"]
+                  if e.get("model_error") is not None)
+    return walls, comm
+
+
+def replay_in_use_line(validation, per_step, tick=None):
+    """The model in use replays the time-shared step (session 40): beside it the per-step overhead
+    (sessions 34-39's model, per-step-overhead/) and the replay at the 4 ms tick."""
+    def med(v):
+        return statistics.median(v) if v else float("nan")
+
+    def top(v):
+        return max(v, default=float("nan"))
+
+    (w, c), (pw, pc) = shared_errors(validation), shared_errors(per_step)
+    a = per_step["summary"]["wall_abs_error"]
+    text = (f"Time-shared step replayed (predict --time-sharing-overhead replay, the model in use since "
+            f"session 40: who runs while whom waits, the step, transfers and waits of one-thread ranks on "
+            f"one node above the cores, no overhead added; slice 1.5 ms, the kernel's EEVDF base slice, "
+            f"preferred to the 4 ms tick in session 39 after seeing sessions 38-39's runs: **tuned**; "
+            f"the replay made the default after session 40's three main jobs, where it matched the "
+            f"per-step overhead on wall time and halved the model's time-shared communication error): "
+            f"over the {len(w)} time-shared configurations wall |error| median {100 * med(w):.1f} %, max "
+            f"{100 * top(w):.1f} %; communication, model prediction, median per-interval |error| "
+            f"{100 * med(c):.1f} % over {len(c)} time-shared intervals. With the per-step overhead "
+            f"instead (sessions 34-39's model) on the same runs: time-shared wall |error| median "
+            f"{100 * med(pw):.1f} %, max {100 * top(pw):.1f} %; communication {100 * med(pc):.1f} %; all "
+            f"{a['count']} configurations: median {100 * a['median']:.1f} %, max {100 * a['max']:.1f} % "
+            f"(per-step-overhead/validation.json).")
+    if tick is not None:
+        tw, tc = shared_errors(tick)
+        text += (f" Untuned, the replay at the 4 ms tick: time-shared wall |error| median "
+                 f"{100 * med(tw):.1f} %, max {100 * top(tw):.1f} %; communication {100 * med(tc):.1f} % "
+                 f"(time-shared-replay-4ms/validation.json).")
+    return text
 
 
 def time_shared_replay_line(validation, replay, tick=None):

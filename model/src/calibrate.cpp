@@ -864,21 +864,43 @@ json compute_time_profile(const json &entry, const std::vector<const SphRun *> &
     return out;
 }
 
-// How a busy rank's compute splits between the three segments of a step, from the phase
-// timers of the calibration runs within the cores (predict --time-sharing-overhead replay):
+// How a busy rank's compute splits between the three segments of a step, from the calibration
+// runs within the cores (predict --time-sharing-overhead replay): their CPU time before each
+// exchange, or for reports before session 40 their phase timers:
 // before the migration (momentum's part of the compute phase, the kicks), before the ghosts
 // (mirrors, packing), before the density refresh (grid, search, id sort, continuity's part).
 // The compute phase holds both passes: continuity's part is its share of the operations per
 // candidate counted in model/README.md ("Flops and bytes"), about 50 of 114.
 namespace {
 json segment_shares(const std::vector<const SphRun *> &runs) {
+    // Measured where the reports carry it (session 40): each busy rank's CPU time before each
+    // exchange. Session 40's calibration runs measured 0.31-0.37 / 0.00 / 0.63-0.69 on Cell+List
+    // and Cell+Table (the timer split below within 0.01) and 0.47 / 0.01 / 0.52 on Cell+Sorted
+    // (the timer split 0.54 / 0.01 / 0.45: its continuity is not 0.44 of its compute).
+    // A 1-rank run makes no exchange: only runs of 2 or more ranks measure the segments.
+    std::vector<const SphRun *> multi;
+    for (const SphRun *r : runs)
+        if (r->config.ranks > 1)
+            multi.push_back(r);
+    const bool measured =
+        !multi.empty() && std::all_of(multi.begin(), multi.end(), [](const SphRun *r) {
+            return std::all_of(r->intervals.begin(), r->intervals.end(), [](const auto &iv) {
+                return std::all_of(iv.ranks.begin(), iv.ranks.end(),
+                                   [](const RankStats &rk) { return rk.has_segment_cpu; });
+            });
+        });
     constexpr double continuity_share = 0.44;
     std::array<double, 3> sum{};
-    for (const SphRun *r : runs)
+    for (const SphRun *r : measured ? multi : runs)
         for (const auto &iv : r->intervals)
             for (const auto &rk : iv.ranks) {
                 if (rk.steps < 1 || rk.field_mean <= 0)
                     continue;
+                if (measured) {
+                    for (std::size_t k = 0; k < sum.size(); ++k)
+                        sum[k] += rk.segment_cpu_s[k];
+                    continue;
+                }
                 const double comp = rk.timer("comp_s");
                 sum[0] += (1 - continuity_share) * comp + rk.timer("integrate_s");
                 sum[1] += rk.timer("boundary_s") + rk.timer("pack_s");
@@ -891,8 +913,10 @@ json segment_shares(const std::vector<const SphRun *> &runs) {
     return {{"before_migration", sum[0] / total},
             {"before_ghosts", sum[1] / total},
             {"before_densities", sum[2] / total},
-            {"method", "busy ranks of the calibration runs within the cores: compute phase "
-                       "split 0.44 / 0.56 between continuity and momentum"}};
+            {"method", measured ? "busy ranks of the calibration runs within the cores: their "
+                                  "CPU time before each exchange (sph cpu_before_s)"
+                                : "busy ranks of the calibration runs within the cores: compute "
+                                  "phase split 0.44 / 0.56 between continuity and momentum"}};
 }
 } // namespace
 

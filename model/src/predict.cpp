@@ -401,6 +401,10 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     // --time-sharing-overhead replay: one node, one-thread ranks bound round-robin: the step,
     // each rank's transfers and waits from the step replayed (who runs while whom waits).
     if (c.sharing_replay && nodes == 1 && threads == 1 && node_shared(0)) {
+        if (!c.segment_shares)
+            throw UsageError("--time-sharing-overhead replay (the default) needs the compute's "
+                             "segment shares, which this model lacks: calibrate it again (session "
+                             "39 or later) or pass --time-sharing-overhead per-step");
         const auto &sh = *c.segment_shares;
         std::vector<std::array<double, 3>> cpu;
         for (double x : compute)
@@ -494,9 +498,6 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     c.sharing_line = req.time_sharing_overhead == "line";
     c.sharing_replay = req.time_sharing_overhead == "replay";
     c.replay_slice_s = req.replay_slice_s;
-    if (c.sharing_replay && !c.segment_shares)
-        throw UsageError("--time-sharing-overhead replay needs the compute's segment shares, "
-                         "which this model lacks: calibrate it again (session 39 or later)");
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());

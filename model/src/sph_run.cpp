@@ -63,6 +63,10 @@ void from_json(const json &j, RankStats &r) {
             r.shift_predict_own_kind_s[k] = s.contains("comm_predict_own_kind_gap_s")
                                                 ? figure(s, "comm_predict_own_kind_gap_s")
                                                 : r.shift_predict_s[k];
+            if (s.contains("cpu_before_s")) {
+                r.segment_cpu_s[k] = figure(s, "cpu_before_s");
+                r.has_segment_cpu = true;
+            }
         }
     for (const auto &[k, v] : j.at("timers").items()) {
         r.timers[k] = v.get<double>();

@@ -123,17 +123,18 @@ int run(int argc, char **argv) {
                   "As sph --overlap (Cell+Sorted only): ghost and density exchanges behind the "
                   "interior columns");
     pre->add_option("--time-sharing-overhead", q.time_sharing_overhead,
-                    "Above the cores, the calibration's time-sharing overhead added per step on a "
-                    "shared core (per-step: the median), as a line in its summed compute where "
+                    "Above the cores: the step replayed (replay: who runs while whom waits, "
+                    "one-thread ranks on one node; elsewhere per-step), or the calibration's "
+                    "time-sharing overhead added per step on a shared core (per-step: the median; "
+                    "the model of sessions 34-39), as a line in its summed compute where "
                     "calibration fitted one (line; else per-step), or as a factor on it (ratio, "
-                    "the model before session 34); or none: the step replayed (replay, a "
-                    "prototype: who runs while whom waits, one-thread ranks on one node)")
+                    "the model before session 34)")
         ->capture_default_str()
         ->check(CLI::IsMember({"per-step", "line", "ratio", "replay"}));
     pre->add_option_function<double>(
            "--replay-slice-ms", [&q](double ms) { q.replay_slice_s = ms * 1e-3; },
            "With --time-sharing-overhead replay: the scheduler slice of a computing rank, ms "
-           "(default 1.5: the kernel's EEVDF base slice on 2 CPUs)")
+           "(default 1.5: the kernel's EEVDF base slice on 2 CPUs; tuned, model/README.md)")
         ->check(FinitePositive);
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 

@@ -182,10 +182,10 @@ TEST(ModelCli, CalibratePredictValidate) {
         EXPECT_EQ(c["placement_pus"].get<std::vector<int>>(),
                   sphperf::model::launcher_placement(c["ranks"].get<int>(), 1,
                                                      p["request"]["cores"].get<int>()));
-        EXPECT_EQ(c["time_sharing_source"].get<std::string>(), c["ranks"].get<int>() == 3
-                                                                   ? "time-shared calibration run "
-                                                                     "(seconds per step)"
-                                                                   : "none (within the cores)");
+        // Above the cores the step is replayed by default (session 40).
+        EXPECT_EQ(c["time_sharing_source"].get<std::string>(),
+                  c["ranks"].get<int>() == 3 ? "the step replayed (replay_time_shared)"
+                                             : "none (within the cores)");
     }
     // Above the cores the overhead is added per step on a shared core, or (the model before)
     // multiplies its summed compute: on the still tank at 3 ranks, where core 0 serves two busy
@@ -214,13 +214,18 @@ TEST(ModelCli, CalibratePredictValidate) {
     // from who runs while whom waits. Each interval's step is at least the busiest core's
     // compute (cores serve their ranks one at a time; to 1 %: the replay's window of whole
     // steps starts and ends at other phases of each rank), the phases of each rank fill its step,
-    // and the calibration's segment shares sum to 1. A model without them cannot replay.
+    // and the calibration's segment shares sum to 1, measured from the runs' CPU time before
+    // each exchange (session 40). A model without them cannot replay: predicting a time-shared
+    // configuration refuses, one within the cores still predicts.
     {
         double shares = 0;
         for (const auto &c : m["compute"])
-            if (c["threads"] == 1)
+            if (c["threads"] == 1) {
                 for (const char *k : {"before_migration", "before_ghosts", "before_densities"})
                     shares += c["segment_shares"][k].get<double>();
+                EXPECT_NE(c["segment_shares"]["method"].get<std::string>().find("cpu_before_s"),
+                          std::string::npos);
+            }
         EXPECT_NEAR(shares, 1.0, 1e-12);
         const auto out = f.dir / "pred_sharing_replay.json";
         const sphperf::testing::Run rr =
@@ -257,6 +262,10 @@ TEST(ModelCli, CalibratePredictValidate) {
         EXPECT_EQ(bad.err_lines(), 1) << bad.err;
         EXPECT_NE(bad.err.find("segment shares"), std::string::npos) << bad.err;
         EXPECT_FALSE(fs::exists(refused));
+        const sphperf::testing::Run within =
+            run(bin("sphmodel") + " predict --model " + old_model.string() +
+                " --setup still --scale 0.5 --ranks 2 --steps 40 --out " + refused.string());
+        EXPECT_EQ(within.code, 0) << within.err;
     }
     // A line through the overhead (session 36) is used by the line form only, and only where
     // calibration found its slope significant: planted with slope 0 and an intercept 0.1 ms

@@ -122,7 +122,7 @@ struct PredictRequest {
     bool overlap = false;
     // The time-sharing overhead the calibration measured, added per step on a shared core
     // (per-step) or as a factor on its summed compute (ratio, the model before session 34).
-    std::string time_sharing_overhead = "per-step";
+    std::string time_sharing_overhead = "replay"; // since session 40 (model/README.md)
     // replay: a shared node's step, comm and wait from the time-shared step replayed
     // (replay_time_shared, session 39) with this scheduler slice, not from an overhead.
     double replay_slice_s = 1.5e-3;

@@ -31,6 +31,9 @@ struct RankStats {
     // comm_predict_s by the rule before session 32 (model::GapRule::own_kind_gap); reports
     // before it predicted by that rule, so their comm_predict_s stands in
     sph::ShiftTimes shift_predict_own_kind_s{};
+    // CPU time before each blocking shift (sph cpu_before_s, session 40); older reports: absent
+    sph::ShiftTimes segment_cpu_s{};
+    bool has_segment_cpu = false;
 
     double timer(const std::string &key) const;
     // Everything the rank computes locally per step (all phases but comm, wait and output).
