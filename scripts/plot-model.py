@@ -496,15 +496,10 @@ def markdown(model, validation, args, out):
         lines.append(f"Communication, model prediction from the predicted workload: median per-interval "
                      f"|error| {100 * s['model_comm_abs_error_per_interval']['median']:.1f} %.")
     per_step = os.path.join(args.dir, "per-step-overhead", "validation.json")
-    replay = os.path.join(args.dir, "time-shared-replay", "validation.json")
     if replaying and os.path.exists(per_step):
         tick = os.path.join(args.dir, "time-shared-replay-4ms", "validation.json")
         lines.append(replay_in_use_line(validation, load(per_step),
                                         load(tick) if os.path.exists(tick) else None))
-    elif os.path.exists(replay):
-        tick = os.path.join(args.dir, "time-shared-replay-4ms", "validation.json")
-        lines.append(time_shared_replay_line(validation, load(replay),
-                                             load(tick) if os.path.exists(tick) else None))
     # sph --overlap beside its blocking twin: the exchanges' exposed time, measured in both.
     for r in validation["configurations"]:
         if not r.get("overlap"):
@@ -582,37 +577,6 @@ def replay_in_use_line(validation, per_step, tick=None):
                  f"{100 * med(tw):.1f} %, max {100 * top(tw):.1f} %; communication {100 * med(tc):.1f} % "
                  f"(time-shared-replay-4ms/validation.json).")
     return text
-
-
-def time_shared_replay_line(validation, replay, tick=None):
-    """The model with its time-shared steps replayed (time-shared-replay/) beside the model in use,
-    over the configurations above the cores: wall |error| and the model's per-interval comm error."""
-    def shared(v):
-        confs = [c for c in v["configurations"] if c.get("oversubscribed")]
-        walls = sorted(abs(c["wall_error"]) for c in confs)
-        comm = sorted(abs(e["model_error"]) for c in confs for e in c["comm_series"]
-                      if e.get("model_error") is not None)
-        return walls, comm
-
-    def med(v):
-        return statistics.median(v) if v else float("nan")
-
-    (w, c), (rw, rc) = shared(validation), shared(replay)
-    a = replay["summary"]["wall_abs_error"]
-    return (f"Time-shared step replayed (predict --time-sharing-overhead replay: who runs while whom "
-            f"waits, the step, transfers and waits of one-thread ranks above the cores, no overhead; "
-            f"slice 1.5 ms, the kernel's EEVDF base slice, preferred to the 4 ms tick in session 39 "
-            f"after seeing sessions 38-39's runs: **tuned**; a prototype beside the model, not in use): "
-            f"over the {len(rw)} time-shared configurations wall |error| median {100 * med(rw):.1f} %, "
-            f"max {100 * max(rw, default=float('nan')):.1f} % (the model's {100 * med(w):.1f} %, "
-            f"{100 * max(w, default=float('nan')):.1f} %); communication, model prediction, median "
-            f"per-interval |error| {100 * med(rc):.1f} % over {len(rc)} time-shared intervals (the "
-            f"model's {100 * med(c):.1f} %); all {a['count']} configurations: median "
-            f"{100 * a['median']:.1f} %, max {100 * a['max']:.1f} % (time-shared-replay/validation.json)."
-            + ("" if tick is None else
-               f" Untuned, at the 4 ms tick: time-shared wall |error| median "
-               f"{100 * med(shared(tick)[0]):.1f} %, max {100 * max(shared(tick)[0], default=float('nan')):.1f} %; "
-               f"communication {100 * med(shared(tick)[1]):.1f} % (time-shared-replay-4ms/validation.json)."))
 
 
 def main():

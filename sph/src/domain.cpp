@@ -164,7 +164,7 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     // and receives at once, so no chain forms across ranks; MPI_PROC_NULL makes the tank
     // edges no-ops.
     const std::size_t k = shift_index(tag);
-    if (last_end_cpu_s_ >= 0)
+    if (cpu_segments_ && last_end_cpu_s_ >= 0)
         tally_.segment_cpu_s[k] += thread_cpu_seconds() - last_end_cpu_s_;
     wait_for_neighbours(tag);
     // The compute since the last shifts decides what this one costs on this machine.
@@ -186,7 +186,8 @@ Domain::Received<T> Domain::shift(const std::vector<T> &to_west, const std::vect
     one_way(west_, east_, to_west, in.from_east);
     const double end = wall_seconds();
     shift_ended(tag, end);
-    last_end_cpu_s_ = thread_cpu_seconds();
+    if (cpu_segments_)
+        last_end_cpu_s_ = thread_cpu_seconds();
     tally_.shift_s[k] += transfers_s;
     const double payload =
         static_cast<double>(sizeof(T) * std::max({to_east.size(), to_west.size(),
@@ -415,7 +416,8 @@ void Domain::complete_shift(double payload_bytes) {
     flight_.receives.clear();
     const double end = wall_seconds();
     shift_ended(flight_.tag, end);
-    last_end_cpu_s_ = thread_cpu_seconds(); // an overlapped shift records no segment
+    if (cpu_segments_) // an overlapped shift records no segment
+        last_end_cpu_s_ = thread_cpu_seconds();
     const std::size_t k = shift_index(flight_.tag);
     tally_.shift_s[k] += end - flight_.posted_s - window;
     tally_.overlap_s += window;

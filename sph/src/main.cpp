@@ -284,6 +284,7 @@ double attach_message_costs(Domain &domain, const Config &cfg, const std::vector
                             int threads) {
     const auto profile = model::load_report(*cfg.machine, "machine");
     auto comm = std::make_shared<model::CommModel>(model::CommModel::from_profile(profile));
+    domain.enable_cpu_segments(); // the time-shared replay's input (replay_time_shared_comm)
     const auto exchange = model::ExchangeModel::from_profile(
         cfg.exchange ? exchange_override(*cfg.exchange, profile, domain.ranks(), threads)
                      : profile);
@@ -391,6 +392,7 @@ void replay_time_shared_comm(RunRecord &rec, const Config &cfg, int threads) {
         for (std::size_t r = 0; r < iv.ranks.size(); ++r) {
             auto &ri = iv.ranks[r];
             ri.comm_predict_s = 0;
+            // The gap rules apply within the cores only: both forms are the replay's here.
             for (std::size_t k = 0; k < ri.shift_predict_s.size(); ++k) {
                 ri.shift_predict_s[k] = ri.shift_predict_own_kind_s[k] =
                     rep.shift_comm_s[r][k] * ri.steps;

@@ -240,12 +240,14 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)
                 jr["timers"][phase_keys[k]] = r.timers[k];
-            for (std::size_t k = 0; k < shift_keys.size(); ++k)
-                jr["shifts"][shift_keys[k]] = {
-                    {"comm_s", r.shift_comm_s[k]},
-                    {"comm_predict_s", r.shift_predict_s[k]},
-                    {"comm_predict_own_kind_gap_s", r.shift_predict_own_kind_s[k]},
-                    {"cpu_before_s", r.segment_cpu_s[k]}};
+            for (std::size_t k = 0; k < shift_keys.size(); ++k) {
+                auto &js = jr["shifts"][shift_keys[k]];
+                js = {{"comm_s", r.shift_comm_s[k]},
+                      {"comm_predict_s", r.shift_predict_s[k]},
+                      {"comm_predict_own_kind_gap_s", r.shift_predict_own_kind_s[k]}};
+                if (c.machine) // measured with --machine only (Domain::enable_cpu_segments)
+                    js["cpu_before_s"] = r.segment_cpu_s[k];
+            }
             jiv["ranks"].push_back(jr);
         }
         j["intervals"].push_back(jiv);

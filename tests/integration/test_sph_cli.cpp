@@ -188,6 +188,9 @@ TEST(SphCli, ReportCarriesTheDocumentedFields) {
                     "/physics/front_x",
                     "/physics/mass",
                     "/physics/kinetic_energy"});
+    // Without --machine the CPU time before each shift is neither measured nor reported.
+    EXPECT_FALSE(j["intervals"][0]["ranks"][0]["shifts"]["ghosts"].contains("cpu_before_s"));
+    EXPECT_TRUE(j["intervals"][0]["ranks"][0]["shifts"]["ghosts"].contains("comm_s"));
     EXPECT_EQ(j["intervals"][0]["columns"].size(), 81u);
     EXPECT_EQ(j["peak_rss_bytes"].size(), 2u);
     // Rank 1 has no fluid at the start of a dam break: it idles.

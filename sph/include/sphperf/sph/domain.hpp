@@ -89,6 +89,9 @@ public:
         cost_east_ = std::move(east);
     }
     void attach_shift_cost(ShiftCost c) { shift_cost_ = std::move(c); }
+    // Records the CPU time before each blocking shift (CommTally::segment_cpu_s; sph --machine
+    // only: two clock reads of about 0.5 us per shift on this VM, not paid without it).
+    void enable_cpu_segments() { cpu_segments_ = true; }
     // What an overlapped exchange cannot hide of a message received from the west and east
     // neighbours.
     void attach_overlap_cost(MessageCost west, MessageCost east) {
@@ -188,6 +191,7 @@ private:
     ShiftCost shift_cost_;
     ExposedCost exposed_cost_;
     bool probe_ = false;
+    bool cpu_segments_ = false;
     // When this rank's previous shift of any kind, and of each kind (migration, ghosts,
     // densities), ended (wall clock): what a shift costs depends on both
     // (model::ExchangeModel::app_shift_seconds).
