@@ -23,7 +23,7 @@ ones it overlaps) and of all three (migration stays blocking), and the wall time
 Then the dam break at scale 1 over a longer run (--developed-steps, 1 rank, each thread count),
 Cell+Table and Cell+Sorted alternating: the short runs above see only the flow's start, where the
 particles still sit in their initial lattice order, and the stored-list grids' search and id sort
-grow dearer as that order decays (model/README.md, "Memory order"); Cell+Sorted's cost does not.
+grow dearer as that order decays (model/NOTES.md, "Memory order"); Cell+Sorted's cost does not.
 Per report interval: each grid's time per step (the sum of its phase timers, 1 rank) and sorted
 over table per round; and over the whole run, from the wall times.
 

@@ -65,7 +65,7 @@ PY
 }
 # The exchange benchmark again, on the run's rank count, right before a validation run within
 # the cores: it costs that run's shifts inline (sph --exchange). On this VM the cost of a shift
-# after 10 ms of compute drifts 2-4x within a minute (model/README.md, session 20), more than
+# after 10 ms of compute drifts 2-4x within a minute (model/NOTES.md, session 20), more than
 # any profile measured once can follow. Only the gaps and payloads the app's shifts fall between.
 if [ "$quick" -eq 1 ]; then
     fresh_args=(--gaps-us 0,10000 --payload-bytes 64,16384 --seconds-per-point 0.02 --min-rounds 5
@@ -87,7 +87,7 @@ fresh_exchange() { # fresh_exchange RANKS NAME [--overlapped]: writes $fresh/NAM
 # scale, c35_steps at 0.35 (the list and table dam breaks: 0.15 s x sqrt(0.35) = 0.089 s, 920
 # steps with a margin). The model in use needs no more (its cost over time is the Froude-time
 # profile). The models reported beside it for comparison may select the memory-order term, which
-# needs the validation's simulated time (model/README.md "Memory order"); a prediction they
+# needs the validation's simulated time (model/NOTES.md "Memory order"); a prediction they
 # cannot make from these runs is listed as such.
 if [ "$quick" -eq 1 ]; then
     v_steps=200 v2_steps=40 vs_steps=40 c_steps=200 c35_steps=130 c7_steps=60 cs_steps=40 interval=20
@@ -107,7 +107,7 @@ short_repeats=3
 # more: Cell+List's and Cell+Table's again in round b, Cell+Sorted's in a third round c a minute
 # after round a. Replayed on the runs of sessions 34-37's 18 main jobs, the 18 runs gave wall
 # medians of 3.5 % on average against 3.3 % (2.8 % median both), the max within 10 % in 9 jobs
-# against 8, for a third less calibration time (model/README.md, session 38). Chosen after
+# against 8, for a third less calibration time (model/NOTES.md, session 38). Chosen after
 # seeing those validation runs: **tuned**. The job still runs the 10 (round b's list and table
 # runs, round c) for more-runs/, session 37's calibration; they are timed apart (cmp_s), not as
 # calibration. Not in --quick (no round c there).
@@ -120,7 +120,7 @@ more_runs=1
 # breaks on Cell+List and Cell+Table (at half scale 20 of the 40 s of two rounds) run once, at
 # scale 0.35 for 920 steps (1.2 s each against 4.5 s): re-run on session 16's stored runs with
 # such runs in place of the half-scale ones, wall median 3.0 -> 2.8 %, every list and table
-# dam break within 5.6 % (model/README.md, session 16). Cell+Sorted's half-scale dam break
+# dam break within 5.6 % (model/NOTES.md, session 16). Cell+Sorted's half-scale dam break
 # stays: it is cheap and covers the whole validation flow (1500 steps of 0.1 ms at every scale:
 # 0.21 in Froude time, the validation's 0.15); reaching furthest in Froude time of the model's
 # runs, it is also the workload trace (the 2-thread dam breaks at 0.35, 0.25, serve
@@ -134,7 +134,7 @@ calibrate_round() { # calibrate_round LABEL
         # A second, larger scale over the flow's start (0.035 in Froude time): at 0.35 a
         # particle has 33 interactions, at 1-2 it has 40, so the per-interaction cost at 0.35
         # alone carried its surface's per-particle share up to scale 2 (+9 to +21 % in 4 of 5
-        # main jobs, model/README.md, session 30).
+        # main jobs, model/NOTES.md, session 30).
         sph 2 "cal_dambreak_s0.7_${grid}_$1" --setup dambreak --scale 0.7 --grid "$grid" \
             --steps "$c7_steps" --interval "$c_interval"
         sph 2 "cal_still_s0.5_${grid}_$1" --setup still --scale 0.5 --grid "$grid" \
@@ -147,7 +147,7 @@ calibrate_round() { # calibrate_round LABEL
     # whatever its work, a fifth of a scale-0.35 step and 3 % of a scale-1 one), for
     # two-thread-scales/ only: cross-validation never kept a term for it, and its runs' level
     # (1.03-1.28 of the fit in session 37's jobs, against 0.92-1.11 at 0.7) put the 1 x 2 dam
-    # break at scale 1 high (model/README.md, session 37).
+    # break at scale 1 high (model/NOTES.md, session 37).
     sph 1x2 "cal_dambreak_s0.35_sorted_t2_$1" --setup dambreak --scale 0.35 --grid sorted \
         --steps "$c_steps" --interval "$c_interval"
     cmp_s=$((cmp_s + SECONDS - t0))
@@ -168,7 +168,7 @@ sorted_runs() {
     sph 3 "cal_still_s0.5_sorted_r3_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     # And at 2 ranks per core (the balanced 4-rank dam breaks' load): without it that load took
-    # the exchange benchmark's ratio, 1.13-1.29 where the app paid about 1.0 (model/README.md,
+    # the exchange benchmark's ratio, 1.13-1.29 where the app paid about 1.0 (model/NOTES.md,
     # session 34). Session 36 added Cell+Table's still tank on 4 ranks (3.5 times longer steps)
     # and fitted the overhead as a line in the step; in use in two blind main jobs it put the
     # balanced 4-rank dam break +8.0 and +26.5 %, the median of these runs alone -4.2 % and
@@ -177,7 +177,7 @@ sorted_runs() {
     sph 4 "cal_still_s0.5_sorted_r4_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     # One rank x 2 threads (the cost at 2 threads is fitted on its own). On this VM a 2-thread
-    # run was bimodal (model/README.md, session 16): the inter-core latency of the two vCPUs,
+    # run was bimodal (model/NOTES.md, session 16): the inter-core latency of the two vCPUs,
     # which switches in spells; since each thread keeps one block of cells (session 21) the far
     # mode costs about 15 % more, and no number of calibration runs tells which mode a later
     # run lands in. The dam break at scale 0.7 for 1500 steps (the time step is 0.1 ms at every
@@ -369,7 +369,7 @@ fi
 model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null
 model_and_validate "$out/ratio-overhead" levelled-one-se froude relative ratio >/dev/null
 # The time-sharing overhead per step instead of the replayed step (sessions 34-39's model; the
-# replay is the model since session 40: model/README.md).
+# replay is the model since session 40: model/NOTES.md).
 model_and_validate "$out/per-step-overhead" levelled-one-se froude relative per-step >/dev/null
 # The replay at the 4 ms tick a parked rank sees (measured; the 1.5 ms slice was preferred to it).
 model_and_validate "$out/time-shared-replay-4ms" levelled-one-se froude relative replay \

@@ -91,7 +91,7 @@ fi
 if [ $((ranks * threads)) -gt "$cores" ] && [ "$threads" -eq 1 ]; then
     # Above the cores one-thread ranks are bound round-robin (rank r on core r mod cores): left
     # to the scheduler, two busy neighbours shared a core in some runs and not in others (the
-    # 4-rank dam break took 3.4-6.1 s unbound, 3.4-4.1 s bound; model/README.md), and the model
+    # 4-rank dam break took 3.4-6.1 s unbound, 3.4-4.1 s bound; model/NOTES.md), and the model
     # predicts where they are.
     flags+=(--oversubscribe --map-by core --bind-to core:overload-allowed)
     export OMPI_MCA_mpi_yield_when_idle=1 # a waiting rank gives its core to the one it waits for

@@ -344,7 +344,7 @@ def markdown(model, validation, args, out):
                      f"{j['k_min_sqrt_s']:.4f}-{j['k_max_sqrt_s']:.4f}). Within the cores a step lasts the "
                      f"expected maximum of the ranks' compute + communication. The square-root form was chosen in "
                      f"session 15 after comparing the predicted waits with sessions 13 and 14's validation runs "
-                     f"(**tuned**; the proportional form's figures on those runs are in model/README.md).")
+                     f"(**tuned**; the proportional form's figures on those runs are in model/NOTES.md).")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
                  "compute | comm | wait | idle | pairs | pairs (regression) | exports (edge) | "
@@ -458,7 +458,7 @@ def markdown(model, validation, args, out):
         bench = s.get("inline_comm_abs_error_per_interval_exchange_benchmark")
         if bench:
             lines.append(f"Above the cores the inline prediction replays the time-shared step (who runs "
-                         f"while whom waits, model/README.md), with the slice of the model's replay, "
+                         f"while whom waits, model/NOTES.md), with the slice of the model's replay, "
                          f"1.5 ms, preferred to the 4 ms tick in session 39 after seeing sessions 38-39's "
                          f"runs (**tuned**); chosen in session 40 after the exchange benchmark (every rank "
                          f"the same work) missed the parked rank in every main job. Untuned, the exchange "
@@ -469,7 +469,7 @@ def markdown(model, validation, args, out):
         if own:
             lines.append(f"Within the cores the migration and the density refresh are costed at the gap since "
                          f"the shift before of any kind, a rule chosen in session 32 after seeing session 31's "
-                         f"migration errors (**tuned**; model/README.md, \"Which gap, again\"). Untuned, at the "
+                         f"migration errors (**tuned**; model/NOTES.md, \"Which gap, again\"). Untuned, at the "
                          f"gap since their own kind (the rule before, recorded by the same runs): median "
                          f"per-interval |error| {100 * own['median']:.1f} %; {inline_by_load(validation, 'inline_own_kind_gap_error')}.")
         by_exchange = inline_by_exchange(validation)
@@ -526,7 +526,7 @@ def markdown(model, validation, args, out):
         lines.append(text + ".")
     if s.get("peak_rss_abs_error"):
         m = validation["configurations"][0].get("peak_rss_bytes", {})
-        lines.append(f"Peak RSS of the largest rank (memory model of model/README.md): |error| median "
+        lines.append(f"Peak RSS of the largest rank (memory model of model/NOTES.md): |error| median "
                      f"{100 * s['peak_rss_abs_error']['median']:.1f} %, max "
                      f"{100 * s['peak_rss_abs_error']['max']:.1f} %; the thesis' Eqs. 4.4/4.5 bound is "
                      f"{m.get('thesis_bound_max_rank', 0) / max(m.get('measured_max_rank', 1), 1):.1f}x the "

@@ -318,7 +318,7 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
         try {
             const CvScore score = cross_validate_score(X, yw, groups, setups);
             // The held-out runs' summed-compute error, reported beside. Selecting on it was
-            // tried in session 12 and not kept (model/README.md, "Cost across scales").
+            // tried in session 12 and not kept (model/NOTES.md, "Cost across scales").
             const json cv_run =
                 by_run ? json(cross_validate_runs(X, yw, groups, setups)) : json(nullptr);
             json c = {{"terms", terms},
@@ -578,7 +578,7 @@ json roofline(const json &machine, const std::vector<SphRun> &runs) {
 }
 
 // Peak RSS per rank = fixed + bytes per stored particle x particles + bytes per interaction x
-// interactions, the last two counted from our data structures (model/README.md), the fixed part
+// interactions, the last two counted from our data structures (model/NOTES.md), the fixed part
 // (MPI, OpenMP and libraries) the median residual of the calibration runs.
 json memory_model(const std::vector<SphRun> &runs) {
     std::vector<double> fixed;
@@ -789,7 +789,7 @@ json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
 // Per setup, measured over fitted compute of the busy ranks through the calibration runs of one
 // grid and thread count, against Froude time (interval midpoint / sqrt(scale)): how the cost of
 // the fitted work changes as the flow evolves. Measured at half scale, the cost of a dam-break
-// interaction follows the flow's Froude time, not its simulated time (model/README.md, "Cost
+// interaction follows the flow's Froude time, not its simulated time (model/NOTES.md, "Cost
 // over Froude time"). Each point is the ratio of sums over a window of neighbouring intervals
 // (all runs pooled, sorted by time), so one noisy interval does not set it.
 json compute_time_profile(const json &entry, const std::vector<const SphRun *> &runs) {
@@ -870,7 +870,7 @@ json compute_time_profile(const json &entry, const std::vector<const SphRun *> &
 // before the migration (momentum's part of the compute phase, the kicks), before the ghosts
 // (mirrors, packing), before the density refresh (grid, search, id sort, continuity's part).
 // The compute phase holds both passes: continuity's part is its share of the operations per
-// candidate counted in model/README.md ("Flops and bytes"), about 50 of 114.
+// candidate counted in model/NOTES.md ("Flops and bytes"), about 50 of 114.
 namespace {
 json segment_shares(const std::vector<const SphRun *> &runs) {
     // Measured where the reports carry it (session 40): each busy rank's CPU time before each

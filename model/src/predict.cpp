@@ -65,7 +65,7 @@ struct Costs {
     // Step-to-step jitter of a rank's compute, standard deviation k sqrt(compute) (0: none
     // measured); within the cores a step lasts the expected maximum over the ranks.
     double jitter_k_sqrt_s = 0;
-    // Peak RSS per rank (model/README.md "Memory"); absent in a model without calibration RSS.
+    // Peak RSS per rank (model/NOTES.md "Memory"); absent in a model without calibration RSS.
     double bytes_per_particle = 0, bytes_per_interaction = 0, fixed_bytes = 0;
 };
 

@@ -134,7 +134,7 @@ int run(int argc, char **argv) {
     pre->add_option_function<double>(
            "--replay-slice-ms", [&q](double ms) { q.replay_slice_s = ms * 1e-3; },
            "With --time-sharing-overhead replay: the scheduler slice of a computing rank, ms "
-           "(default 1.5: the kernel's EEVDF base slice on 2 CPUs; tuned, model/README.md)")
+           "(default 1.5: the kernel's EEVDF base slice on 2 CPUs; tuned, model/NOTES.md)")
         ->check(FinitePositive);
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 

@@ -67,14 +67,14 @@ Config parse(int argc, char **argv) {
     app.add_option("--exchange", cfg.exchange,
                    "An exchange benchmark report of this host at this run's rank count: cost the "
                    "shifts with it instead of the machine profile's (measure it right before the "
-                   "run where exchange costs drift, see model/README.md)")
+                   "run where exchange costs drift, see model/NOTES.md)")
         ->check(CLI::ExistingFile)
         ->needs(o_machine);
     app.add_option("--replay-slice-ms", cfg.replay_slice_ms,
                    "With --machine above the cores (one-thread ranks on one node, blocking "
                    "exchanges): the scheduler slice, in ms, of the time-shared step's replay that "
                    "predicts comm_predict_s (1.5: the kernel's EEVDF base slice here; tuned, "
-                   "model/README.md)")
+                   "model/NOTES.md)")
         ->check(FinitePositive)
         ->needs(o_machine);
     app.add_option("--vtk", cfg.vtk_dir, "Write ParaView snapshots (.vtu + sph.pvd) here");

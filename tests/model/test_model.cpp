@@ -343,7 +343,7 @@ TEST(Workload, IdleOnsetIsWhenTheWaterReachesEachSlab) {
     // Froude: at scale 4 (lengths x 4, times x 2, 16 columns of 1 m) times double, and counts
     // are rescaled to the target's 128 particles: slab 3 (source column 3) holds 16 x the
     // source count, so it is busy once the source holds 1/16, at 0.2 + 0.1 (1/16) / 2 s,
-    // target time 0.40625 s: step 41 (rescaled counts make an early tip: model/README.md).
+    // target time 0.40625 s: step 41 (rescaled counts make an early tip: model/NOTES.md).
     Target big = same;
     big.scale = 4;
     big.tank_length = 16;

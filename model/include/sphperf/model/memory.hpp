@@ -1,5 +1,5 @@
 #pragma once
-// The memory model's counts (model/README.md "Memory"), from our data structures: what one
+// The memory model's counts (model/NOTES.md "Memory"), from our data structures: what one
 // stored particle and one stored interaction cost. Calibration adds the fixed part; `sph` uses
 // the counts alone to refuse, before it allocates, a run that cannot fit.
 #include <string_view>

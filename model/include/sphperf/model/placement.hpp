@@ -2,7 +2,7 @@
 // Where the launcher puts the ranks, and what a step costs when they take turns on the cores.
 // Above the cores scripts/mpirun.sh binds one-thread ranks round-robin (rank r on core r mod C).
 // Unbound, the scheduler paired the two busy ranks of the 4-rank dam break on one core in some
-// runs and not in others: 3.4-6.1 s over 12 runs, 3.4-4.1 s over 11 runs bound (model/README.md,
+// runs and not in others: 3.4-6.1 s over 12 runs, 3.4-4.1 s over 11 runs bound (model/NOTES.md,
 // "Time-sharing"). A core serves its ranks' compute one after the other (their phases are
 // shorter than a scheduler slice), so a step lasts at least the busiest core's summed compute.
 #include "sphperf/model/fit.hpp"
@@ -43,7 +43,7 @@ std::optional<LinearFit> fit_sharing_overhead(std::span<const double> compute_pe
                                               std::span<const double> overhead_per_step_s,
                                               double min_span = 2.0);
 
-// The time-shared step replayed (session 39, model/README.md; predict --time-sharing-overhead
+// The time-shared step replayed (session 39, model/NOTES.md; predict --time-sharing-overhead
 // replay): one-thread ranks, rank r bound to core core_of[r], each step three segments of CPU
 // work (cpu_s[r]: before the migration, the ghost and the density exchange), each followed by
 // its exchange as the app makes it (a zero-byte handshake east then west: wait; counts and

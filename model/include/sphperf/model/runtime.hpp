@@ -18,7 +18,7 @@
 namespace sphperf::model {
 
 // Flops and bytes per neighbour interaction per step, counted from sph/physics.hpp, kernel.hpp
-// and grid_impl.hpp (model/README.md shows the count). Bytes assume no cache reuse, as the
+// and grid_impl.hpp (model/NOTES.md shows the count). Bytes assume no cache reuse, as the
 // thesis' 56 bytes per pair did: an upper bound on memory traffic.
 struct InteractionCost {
     const char *stage;
@@ -59,7 +59,7 @@ struct RankWork {
 // coefficients at the setup's own run level when the calibration ran that setup.
 LinearFit compute_cost_of(const nlohmann::json &entry, const std::string &setup);
 
-// How the compute cost's terms are chosen (model/README.md, "Choosing the cost terms").
+// How the compute cost's terms are chosen (model/NOTES.md, "Choosing the cost terms").
 //   levelled_one_se: one cost level per setup in the fit and in its cross-validation, and the
 //     smallest set of terms within one standard error of the best held-out score (session 13);
 //   pooled_one_percent: one fit pooling the setups, a term kept when it lowers the held-out
@@ -118,11 +118,11 @@ struct PredictRequest {
     int rebalance_every = 0;
     ColumnWeights weights;
     // sph --overlap (Cell+Sorted): the ghost and density exchanges run behind the interior
-    // columns; each rank pays its received payloads' one-way Hockney time (model/README.md).
+    // columns; each rank pays its received payloads' one-way Hockney time (model/NOTES.md).
     bool overlap = false;
     // The time-sharing overhead the calibration measured, added per step on a shared core
     // (per-step) or as a factor on its summed compute (ratio, the model before session 34).
-    std::string time_sharing_overhead = "replay"; // since session 40 (model/README.md)
+    std::string time_sharing_overhead = "replay"; // since session 40 (model/NOTES.md)
     // replay: a shared node's step, comm and wait from the time-shared step replayed
     // (replay_time_shared, session 39) with this scheduler slice, not from an overhead.
     double replay_slice_s = 1.5e-3;

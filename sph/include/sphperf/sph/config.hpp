@@ -90,7 +90,7 @@ FaultInjection parse_fault(std::string_view s);
 // What a column costs per step in the balanced decomposition: weight times its fluid particles
 // plus weight times its wall particles. By default both count as particles do in the neighbour
 // search (one each); with --model the calibrated performance model's compute coefficients
-// (model/README.md) give seconds instead.
+// (model/NOTES.md) give seconds instead.
 struct BalanceWeights {
     double fluid = 1.0, walls = 1.0;
     std::string source = "particle count";
@@ -113,7 +113,7 @@ struct Config {
     // right before the run, on a machine whose exchange costs drift).
     std::optional<std::filesystem::path> exchange;
     // Above the cores (--machine): the scheduler slice of the replay that predicts the
-    // time-shared step's transfers (sph/README.md; 1.5 ms, tuned, model/README.md).
+    // time-shared step's transfers (sph/README.md; 1.5 ms, tuned, model/NOTES.md).
     double replay_slice_ms = 1.5;
     std::optional<std::filesystem::path> vtk_dir;
     int vtk_every = 0;

@@ -104,7 +104,7 @@ public:
     // The machine's latency mode now (sph --machine within the cores): the mean time of 64
     // back-to-back 64-byte shifts after 64 untimed ones, the exchange benchmark's gap-0 point,
     // timed apart from every phase and tally. On this VM it flips between two modes as the
-    // hypervisor moves the virtual cores (model/README.md, session 19). 0 unless enabled or alone.
+    // hypervisor moves the virtual cores (model/NOTES.md, session 19). 0 unless enabled or alone.
     void enable_latency_probe() { probe_ = true; }
     double probe_latency();
     int west() const { return west_; }
