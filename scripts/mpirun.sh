@@ -36,7 +36,7 @@ positive "thread count" "$threads"
 # through shared buffers, a larger one by a single copy the receiver makes with
 # process_vm_readv (CMA). On this VM CMA is the slow path: a 16 KB shift took 5.5 us back to
 # back and 12.5 us after 10 ms of compute, 1.2 and 4.1 us with this limit; the still tank's
-# 70 KB ghosts at scale 4 took 36-46 us to complete, 9-11 with a 128 KB limit (sph/README.md,
+# 70 KB ghosts at scale 4 took 36-46 us to complete, 9-11 with a 128 KB limit (sph/NOTES.md,
 # "Overlap"). The app's messages fit below it. A value set by the user wins; reports record it
 # (mpi_mca).
 export OMPI_MCA_btl_vader_eager_limit="${OMPI_MCA_btl_vader_eager_limit:-262144}"

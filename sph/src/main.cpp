@@ -122,7 +122,7 @@ Config parse(int argc, char **argv) {
     app.add_option("--reorder-every", cfg.reorder_every,
                    "Cell+Sorted: steps between permuting the particles themselves into cell "
                    "order (0: never; the grid sorts a copy every step either way, and the "
-                   "results are the same; measured slower on this problem, see sph/README.md)")
+                   "results are the same; measured slower on this problem, see sph/NOTES.md)")
         ->capture_default_str()
         ->check(CLI::Range(0, 1 << 30));
     app.add_flag("--quiet", cfg.quiet, "No progress line");

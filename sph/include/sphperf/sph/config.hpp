@@ -42,7 +42,7 @@ struct Physics {
     double pressure(double rho) const {
         const double r = rho / rho0;
         // gamma = 7 by three multiplications: the pass vectorises, and std::pow took 3 % of a
-        // Cell+Sorted step (sph/README.md). Another exponent takes std::pow.
+        // Cell+Sorted step (sph/NOTES.md). Another exponent takes std::pow.
         if (gamma == 7.0) {
             const double r2 = r * r, r4 = r2 * r2;
             return tait_b() * (r4 * r2 * r - 1.0);

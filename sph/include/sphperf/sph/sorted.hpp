@@ -63,7 +63,7 @@ public:
     // Puts the owned particles themselves in cell order (fluid, then walls, each by cell; no
     // transient particle may exist): update's copy and the passes' writes back then walk
     // Particles in order. Changes no result (every sum runs in cell and id order, wherever a
-    // particle sits); it did not pay on the dam break (sph/README.md), so it is optional.
+    // particle sits); it did not pay on the dam break (sph/NOTES.md), so it is optional.
     void reorder(Particles &p, const CellWindow &w);
     // --overlap: sorts the particles present now and keeps `west` and `east` positions free at
     // the two ends for the ghosts in flight, which can only land in the window's edge columns
@@ -111,7 +111,7 @@ private:
     // thread the same block, so it reads what it wrote and the threads share only the cells at
     // the cut. A dynamic schedule pays an inter-core round trip per chunk and moves the data
     // between cores every pass; this VM's inter-core latency switches between about 80 and
-    // 350 ns (sph/README.md).
+    // 350 ns (sph/NOTES.md).
     void cut_blocks();
     // remote_columns_ anew: the density pass counts remote partners in these columns only.
     void mark_remote_columns();
