@@ -44,17 +44,10 @@ sph() { # sph RANKS[xTHREADS] NAME ARGS...: one measured run (1 thread per rank 
         --machine "$machine" --report "$runs/$name.json" "$@" >/dev/null
     printf '  %-28s %4d s\n' "$name" $((SECONDS - t0))
 }
-# sph_median N RANKS[xTHREADS] NAME ARGS...: N runs (odd N) of one configuration, the one with the
-# median wall time kept as NAME, every run also as $repeats/NAME.repK (rep1: what a single run
-# would have given, for first-runs/).
-sph_median() {
-    local n=$1 spec=$2 name=$3 k
-    shift 3
-    for k in $(seq 1 "$n"); do
-        sph "$spec" "$name.rep$k" "$@"
-        mv "$runs/$name.rep$k.json" "$repeats/"
-    done
-    /usr/bin/python3 - "$repeats" "$name" "$n" "$runs/$name.json" <<'PY'
+# keep_median N NAME: of the N runs $repeats/NAME.rep1..N (odd N), the one with the median wall
+# time becomes $runs/NAME (rep1: what a single run would have given, for first-runs/).
+keep_median() {
+    /usr/bin/python3 - "$repeats" "$2" "$1" "$runs/$2.json" <<'PY'
 import json, shutil, sys
 folder, name, n, dest = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
 walls = [(json.load(open(f"{folder}/{name}.rep{k}.json"))["wall_s"], k) for k in range(1, n + 1)]
@@ -99,7 +92,12 @@ fi
 # The validation runs under 3 s (the sorted still tanks and the 2-thread dam break) run 3 times
 # and the median run is validated: a slow spell of this VM (10-35 % over minutes) covers a whole
 # short run (session 34: the 2-rank still tank took 1.41 s, its --overlap twin 1.26 s, predicted
-# 1.25). Each one's first run alone is validated too (first-runs/). About 15 s.
+# 1.25). Since session 42 the 3 runs are spread over the job (after the first validation runs,
+# after calibration round b, at the end), not back to back: in sessions 37-40's 18 main jobs the
+# three back-to-back runs spanned 3-6 % (median) while 14 of their 15 errors above 10 % lay
+# outside that span, most in one spell covering the whole late block (X40f: all four +19 to
+# +28 %), and a calibration run 90 s before that block did not follow its speed (correlation
+# -0.07; model/NOTES.md, session 42). Each one's first run alone is validated too (first-runs/).
 short_repeats=3
 # The model calibrates on 18 runs (session 38): Cell+List's and Cell+Table's in round a only,
 # Cell+Sorted's short ones (half-scale still tanks at 2, 3 and 4 ranks and at 2 threads, dam
@@ -190,13 +188,15 @@ sorted_runs() {
 cal_s=0
 cmp_s=0 # runs that only comparison models read
 val_s=0
-# validate_run [--repeat N] RANKS[xTHREADS] NAME ARGS...: one validation run, or N runs of it
-# (odd N) and the one with the median wall time kept as NAME (the others in $repeats/).
+# validate_run [--rep K] RANKS[xTHREADS] NAME ARGS...: one validation run, as NAME, or as the
+# K-th of the short configurations' spread runs ($repeats/NAME.repK; keep_median picks one).
+rep_s=0 # the short configurations' runs, all passes: a third of it counts as validation
 validate_run() {
-    local n=1
-    if [ "$1" = "--repeat" ]; then n=$2; shift 2; fi
+    local rep=""
+    if [ "$1" = "--rep" ]; then rep=$2; shift 2; fi
     local ranks=${1%x*} name=$2 spec=$1
     shift 2
+    local run=$name${rep:+.rep$rep}
     local extra=()
     # Within the cores only: above them the shift's cost is a descheduled neighbour, and fresh
     # figures did no better than the profile's (session 20: time-shared median 37.9 % against
@@ -205,17 +205,38 @@ validate_run() {
         # An --overlap run's ghost and density exchanges are costed as measured overlapped.
         local mode=""
         case " $* " in *" --overlap "*) mode=--overlapped ;; esac
-        fresh_exchange "$ranks" "$name" $mode
-        extra=(--exchange "$fresh/$name.json")
+        fresh_exchange "$ranks" "$run" $mode
+        extra=(--exchange "$fresh/$run.json")
     fi
     local t0=$SECONDS
-    if [ "$n" -eq 1 ]; then
-        sph "$spec" "$name" "${extra[@]}" "$@"
+    sph "$spec" "$run" "${extra[@]}" "$@"
+    if [ -n "$rep" ]; then
+        mv "$runs/$run.json" "$repeats/"
+        rep_s=$((rep_s + SECONDS - t0))
     else
-        sph_median "$n" "$spec" "$name" "${extra[@]}" "$@"
+        val_s=$((val_s + SECONDS - t0))
     fi
-    # One run per configuration: what calibration is compared with.
-    val_s=$((val_s + (SECONDS - t0) / n))
+}
+# short_pass K: the K-th run of each short configuration (one pass of short_repeats, spread over
+# the job); the last pass keeps each configuration's median run.
+short_pass() {
+    local k=$1
+    validate_run --rep "$k" 3 val_still_s1_sorted_r3 --setup still --grid sorted \
+        --steps "$vs_steps" --interval "$interval"
+    validate_run --rep "$k" 1x2 val_dambreak_s1_sorted_t2 --setup dambreak --grid sorted \
+        --steps "$v_steps" --interval "$interval"
+    validate_run --rep "$k" 2 val_still_s1_sorted_r2 --setup still --grid sorted \
+        --steps "$vs_steps" --interval "$interval"
+    validate_run --rep "$k" 2 val_still_s1_sorted_overlap_r2 --setup still --grid sorted --overlap \
+        --steps "$vs_steps" --interval "$interval"
+    if [ "$k" -eq "$short_repeats" ]; then
+        local name
+        for name in val_still_s1_sorted_r3 val_dambreak_s1_sorted_t2 val_still_s1_sorted_r2 \
+            val_still_s1_sorted_overlap_r2; do
+            keep_median "$short_repeats" "$name"
+        done
+        val_s=$((val_s + rep_s / short_repeats))
+    fi
 }
 
 stage "calibration round a: half-scale runs, 2 ranks (and 3 for time-sharing), all three grids"
@@ -225,8 +246,10 @@ for r in 1 2 3 4; do
     validate_run "$r" "val_dambreak_s1_table_r$r" --setup dambreak --grid table --steps "$v_steps" \
         --interval "$interval"
 done
+stage "short validation runs, pass 1 of $short_repeats"
+short_pass 1
 if [ "$more_runs" -eq 1 ]; then
-    stage "calibration round c (more-runs/ only): Cell+Sorted's runs again, a minute after round a"
+    stage "calibration round c (more-runs/ only): Cell+Sorted's runs again, after the first short runs"
     t0=$SECONDS
     sorted_runs c
     cmp_s=$((cmp_s + SECONDS - t0))
@@ -242,6 +265,8 @@ for r in 2 4; do
 done
 stage "calibration round b"
 calibrate_round b
+stage "short validation runs, pass 2 of $short_repeats"
+short_pass 2
 stage "validation runs, second half"
 validate_run 2 val_dambreak_s2_table_r2 --setup dambreak --grid table --scale 2 \
     --steps "$v2_steps" --interval "$interval"
@@ -255,18 +280,12 @@ validate_run 2 val_still_s1_list_r2 --setup still --grid list --steps "$vs_steps
     --interval "$interval"
 validate_run 2 val_dambreak_s1_sorted_r2 --setup dambreak --grid sorted --steps "$v_steps" \
     --interval "$interval"
-validate_run --repeat "$short_repeats" 3 val_still_s1_sorted_r3 --setup still --grid sorted --steps "$vs_steps" \
-    --interval "$interval"
-validate_run --repeat "$short_repeats" 1x2 val_dambreak_s1_sorted_t2 --setup dambreak --grid sorted --steps "$v_steps" \
-    --interval "$interval"
 # Non-blocking ghost exchanges (sph --overlap), beside their blocking twins: the dam break's
 # sorted 2-rank run above, and the still tank, where both ranks compute and send large ghosts.
 validate_run 2 val_dambreak_s1_sorted_overlap_r2 --setup dambreak --grid sorted --overlap \
     --steps "$v_steps" --interval "$interval"
-validate_run --repeat "$short_repeats" 2 val_still_s1_sorted_r2 --setup still --grid sorted --steps "$vs_steps" \
-    --interval "$interval"
-validate_run --repeat "$short_repeats" 2 val_still_s1_sorted_overlap_r2 --setup still --grid sorted --overlap \
-    --steps "$vs_steps" --interval "$interval"
+stage "short validation runs, pass $short_repeats of $short_repeats"
+short_pass "$short_repeats"
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
 # model_and_validate DIR RULE PROFILE [WEIGHTS [SHARING]]: calibrate with the compute-cost term

@@ -7,6 +7,7 @@ Reads model.json, prediction_*.json, validation.json and runs/*.json; writes roo
 scaling.png, workload.png, regressions.png, comm_error.png and validation.md beside them.
 """
 import argparse
+import datetime
 import glob
 import json
 import os
@@ -200,14 +201,21 @@ def comm_error(validation, out):
 
 
 def repeated_runs(folder, kind):
-    """'name w1, w2, w3 s' for each run of kind 'val' or 'cal' repeated by model-node.sh
-    (repeats/)."""
-    walls = {}
+    """'name w1, w2, w3 s (started 0, +t2, +t3 s)' for each run of kind 'val' or 'cal' repeated
+    by model-node.sh (repeats/): since session 42 the runs are spread over the job."""
+    runs = {}
     for path in sorted(glob.glob(os.path.join(folder, "repeats", f"{kind}_*.rep*.json"))):
         name, k = os.path.basename(path)[:-len(".json")].rsplit(".rep", 1)
-        walls.setdefault(name, []).append((int(k), load(path)["wall_s"]))
-    return [f"{name[len(kind) + 1:]} " + ", ".join(f"{w:.2f}" for _, w in sorted(v)) + " s"
-            for name, v in walls.items()]
+        r = load(path)
+        start = datetime.datetime.fromisoformat(r["timestamp"].replace("Z", "+00:00"))
+        runs.setdefault(name, []).append((int(k), r["wall_s"], start))
+    out = []
+    for name, v in runs.items():
+        v.sort()
+        t0 = v[0][2]
+        out.append(f"{name[len(kind) + 1:]} " + ", ".join(f"{w:.2f}" for _, w, _ in v) + " s (started "
+                   + ", ".join(f"{(t - t0).total_seconds():+.0f}" for _, _, t in v) + " s)")
+    return out
 
 
 def fresh_source(args):
@@ -437,7 +445,8 @@ def markdown(model, validation, args, out):
             if repeated:
                 text += ("The shortest validation runs (under 3 s in the full job), run 3 times each "
                          "and the run with the median wall time validated (chosen in session 34 after "
-                         "a 1.4 s run came out 11 % slower than its twin): " + "; ".join(repeated)
+                         "a 1.4 s run came out 11 % slower than its twin; the runs spread over the "
+                         "job since session 42, back to back before): " + "; ".join(repeated)
                          + ". ")
             if cal_repeated:
                 text += ("The calibration runs under 0.5 s likewise, the median run of each round "
