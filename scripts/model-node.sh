@@ -352,7 +352,8 @@ model_and_validate() {
 }
 # The term rule in use was chosen (session 13) after comparing rules on three main jobs' runs,
 # and the Froude-time profile (session 16) after seeing the scale-1 dam-break errors: both are
-# tuned, and so are the relative fit weights (session 31, after seeing the 2-thread dam break's
+# tuned, and so is its robust quadratic (session 42, after seeing the scale-2 dam breaks'
+# errors), the relative fit weights (session 31, after seeing the 2-thread dam break's
 # errors), and the time-sharing overhead per step (session 34, after seeing the 3-rank still
 # tanks' errors), and the replayed time-shared step in its place (session 40, after seeing
 # sessions 36-40's runs). The same runs go through the models before them too: with absolute
@@ -385,6 +386,8 @@ if ls "$runs"/cal_dambreak_s0.35_sorted_t2_*.json >/dev/null 2>&1; then
     model_and_validate "$out/two-thread-scales" levelled-one-se froude >/dev/null
     mapfile -t cal_reports < <(model_runs)
 fi
+# The Froude-time profile as the moving ratio of sessions 16-41 instead of the robust quadratic.
+model_and_validate "$out/windowed-profile" levelled-one-se froude-windowed >/dev/null
 model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null
 model_and_validate "$out/ratio-overhead" levelled-one-se froude relative ratio >/dev/null
 # The time-sharing overhead per step instead of the replayed step (sessions 34-39's model; the

@@ -411,6 +411,16 @@ def markdown(model, validation, args, out):
              "after seeing the scale-1 dam-break errors: **tuned**. Without it (the fit alone, descents read "
              "at simulated time, session 15's model) on the same runs: {o}, those it can predict from these "
              "calibration runs (no-profile/validation.json; refusals, if any, in no-profile/refused.txt)."),
+            (any(p.get("smoothing") == "robust quadratic" for c in model["compute"]
+                 for p in (c.get("time_profile") or {}).values() if isinstance(p, dict)),
+             "windowed-profile",
+             "The Froude-time profile a quadratic fitted by robust least squares (bisquare) to the "
+             "calibration intervals' measured / fitted compute, chosen in session 42 after replaying "
+             "20 stored main jobs (the scale-2 dam breaks read their whole run off the profile's first "
+             "0.035 s of Froude time, where one slow spell in one calibration run bent the moving "
+             "ratio by 10-20 %: on 4 ranks 3 of 20 beyond 10 % with it, none with the quadratic): "
+             "**tuned**. With the moving ratio over +-2 intervals (sessions 16-41) on the same runs: "
+             "{o} (windowed-profile/validation.json)."),
             (any("overhead_s_per_step" in t for t in model.get("time_sharing", [])),
              "ratio-overhead",
              "Time-sharing overhead added in seconds per step on a shared core (predict "

@@ -21,6 +21,7 @@ struct GslFree {
     void operator()(gsl_matrix *m) const { gsl_matrix_free(m); }
     void operator()(gsl_vector *v) const { gsl_vector_free(v); }
     void operator()(gsl_multifit_linear_workspace *w) const { gsl_multifit_linear_free(w); }
+    void operator()(gsl_multifit_robust_workspace *w) const { gsl_multifit_robust_free(w); }
 };
 template <class T> using Owned = std::unique_ptr<T, GslFree>;
 } // namespace
@@ -111,6 +112,50 @@ LinearFit fit_linear(const std::vector<std::vector<double>> &X, std::span<const 
     f.r2 = sst > 0 ? 1.0 - chisq / sst : 1.0;
     f.rse = std::sqrt(chisq / dof);
     return f;
+}
+
+RobustFit fit_robust(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                     std::vector<std::string> terms) {
+    const std::size_t n = X.size(), p = terms.size();
+    if (n != y.size())
+        throw std::invalid_argument("robust fit: X and y differ in length");
+    if (n <= p)
+        throw std::invalid_argument("robust fit: " + std::to_string(n) +
+                                    " points cannot determine " + std::to_string(p) +
+                                    " coefficients");
+    Owned<gsl_matrix> A(gsl_matrix_alloc(n, p)), C(gsl_matrix_alloc(p, p));
+    Owned<gsl_vector> b(gsl_vector_alloc(n)), c(gsl_vector_alloc(p));
+    for (std::size_t i = 0; i < n; ++i) {
+        if (X[i].size() != p)
+            throw std::invalid_argument("robust fit: a row of X has the wrong number of terms");
+        for (std::size_t k = 0; k < p; ++k)
+            gsl_matrix_set(A.get(), i, k, X[i][k]);
+        gsl_vector_set(b.get(), i, y[i]);
+    }
+    Owned<gsl_multifit_robust_workspace> work(
+        gsl_multifit_robust_alloc(gsl_multifit_robust_bisquare, n, p));
+    gsl_set_error_handler_off();
+    // GSL_EMAXITER still leaves the last iterate, a usable fit; anything else is not.
+    const int status = gsl_multifit_robust(A.get(), b.get(), c.get(), C.get(), work.get());
+    if (status != GSL_SUCCESS && status != GSL_EMAXITER)
+        throw std::invalid_argument(std::string("robust fit: ") + gsl_strerror(status));
+    const gsl_multifit_robust_stats st = gsl_multifit_robust_statistics(work.get());
+    RobustFit out;
+    LinearFit &f = out.fit;
+    f.terms = std::move(terms);
+    f.points = n;
+    for (std::size_t k = 0; k < p; ++k) {
+        f.coef.push_back(gsl_vector_get(c.get(), k));
+        f.se.push_back(std::sqrt(gsl_matrix_get(C.get(), k, k)));
+        f.cov.emplace_back();
+        for (std::size_t l = 0; l < p; ++l)
+            f.cov.back().push_back(gsl_matrix_get(C.get(), k, l));
+    }
+    f.r2 = st.Rsq;
+    f.rse = st.sigma;
+    for (std::size_t i = 0; i < n; ++i)
+        out.weights.push_back(gsl_vector_get(st.weights, i));
+    return out;
 }
 
 LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y) {

@@ -53,10 +53,12 @@ int run(int argc, char **argv) {
         ->check(CLI::IsMember({"levelled-one-se", "pooled-one-percent"}));
     cal->add_option("--time-profile", o.time_profile,
                     "How the cost of an interaction evolves with the flow: froude (a profile of "
-                    "measured / fitted compute over Froude time, from the calibration runs) or "
-                    "none (the fit alone, with the memory-order term descents at simulated time)")
+                    "measured / fitted compute over Froude time from the calibration runs, a "
+                    "quadratic fitted robustly), froude-windowed (the same profile as a moving "
+                    "ratio over +-2 intervals, sessions 16-41) or none (the fit alone, with the "
+                    "memory-order term descents at simulated time)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"froude", "none"}));
+        ->check(CLI::IsMember({"froude", "froude-windowed", "none"}));
     cal->add_option("--fit-weights", o.fit_weights,
                     "How the compute-cost fit and its cross-validation weigh the rank-intervals: "
                     "absolute (seconds per step) or relative (each divided by its run's median "
@@ -163,7 +165,9 @@ int run(int argc, char **argv) {
                       {o.allow_other_host,
                        o.term_selection == "pooled-one-percent" ? TermSelection::pooled_one_percent
                                                                 : TermSelection::levelled_one_se,
-                       o.time_profile == "none" ? TimeProfile::none : TimeProfile::froude,
+                       o.time_profile == "none"              ? TimeProfile::none
+                       : o.time_profile == "froude-windowed" ? TimeProfile::froude_windowed
+                                                             : TimeProfile::froude,
                        o.fit_weights == "relative" ? FitWeights::relative : FitWeights::absolute});
         std::cout << calibration_table(model);
         sink.write(model);

@@ -44,6 +44,31 @@ TEST(Fit, RefusesTooFewPointsAndDependentTerms) {
     EXPECT_THROW(fit_linear(X, std::vector<double>{1, 2, 3, 4}, {"a", "b"}), std::invalid_argument);
 }
 
+// Robust least squares: a planted line with 1 % noise and a tenth of its points 30 % high (a
+// slow spell) is recovered within 0.5 %, the outliers rejected; ordinary least squares on the
+// same points is pulled off by more than 1 %.
+TEST(Fit, RobustFitRejectsABlockOfOutliers) {
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0.0, 0.01);
+    std::vector<std::vector<double>> X;
+    std::vector<double> y;
+    for (int i = 0; i < 100; ++i) {
+        const double u = i / 99.0;
+        X.push_back({1.0, u});
+        y.push_back((1.0 + 0.5 * u) * (1 + noise(rng)) * (i >= 20 && i < 30 ? 1.3 : 1.0));
+    }
+    const RobustFit r = fit_robust(X, y, {"const", "u"});
+    EXPECT_NEAR(r.fit.coefficient("const"), 1.0, 0.005);
+    EXPECT_NEAR(r.fit.coefficient("u"), 0.5, 0.01);
+    ASSERT_EQ(r.weights.size(), y.size());
+    for (int i = 20; i < 30; ++i)
+        EXPECT_EQ(r.weights[static_cast<std::size_t>(i)], 0.0) << "outlier " << i;
+    const LinearFit ls = fit_linear(X, y, {"const", "u"});
+    EXPECT_GT(std::abs(ls.coefficient("const") - 1.0), 0.01);
+    EXPECT_THROW(fit_robust({{1.0, 0.0}, {1.0, 1.0}}, std::vector<double>{1, 2}, {"const", "u"}),
+                 std::invalid_argument);
+}
+
 TEST(Fit, CrossValidationPrefersThePlantedTerms) {
     // y depends on x1 and x2; leaving x2 out must score worse held out.
     std::mt19937 rng(3);
@@ -1007,13 +1032,74 @@ TEST(TimeProfile, RecoversAPlantedCostOverFroudeTime) {
     std::vector<const SphRun *> pointers;
     for (const auto &r : runs)
         pointers.push_back(&r);
-    const auto p = compute_time_profile(entry, pointers).at("dambreak");
+    const auto p = compute_time_profile(entry, pointers, false).at("dambreak");
     const auto t = p.at("froude_time_s").get<std::vector<double>>();
     const auto f = p.at("factor").get<std::vector<double>>();
     ASSERT_EQ(t.size(), static_cast<std::size_t>(intervals)); // the rounds share their times
     EXPECT_EQ(p.at("runs"), 2);
+    EXPECT_EQ(p.at("smoothing"), "window");
     // Away from the ends (where the window is cut short) every factor is g at its time.
     for (std::size_t k = 2; k + 2 < t.size(); ++k)
         EXPECT_NEAR(f[k], g(t[k]), 1e-9) << "at Froude time " << t[k];
     EXPECT_NEAR(t.back(), (intervals * steps - 0.5 * steps) * dt / std::sqrt(scale), 1e-12);
+}
+
+// The smoothed profile (--time-profile froude, session 42): a planted quadratic cost over
+// Froude time with 1 % noise, and a slow spell of the host (+20 % for 5 intervals) in one of the
+// two runs. The robust quadratic recovers the planted curve within 1 % everywhere, spell
+// included, and rejects the spell's intervals; the window's ratio carries half the spell.
+TEST(TimeProfile, RobustQuadraticIgnoresASlowSpellInOneRun) {
+    constexpr double per_interaction = 2e-8, scale = 0.5, dt = 1e-4;
+    constexpr int steps = 10, intervals = 40, spell_from = 10, spell_to = 15;
+    auto g = [](double tf) { return 0.95 + 2.0 * tf + 40.0 * tf * tf; };
+    std::mt19937 rng(11);
+    std::normal_distribution<double> noise(0.0, 0.01);
+    std::vector<SphRun> runs(2);
+    for (std::size_t n = 0; n < runs.size(); ++n) {
+        SphRun &r = runs[n];
+        r.config.setup = "dambreak";
+        r.config.grid = "table";
+        r.config.scale = scale;
+        r.config.dt = dt;
+        r.config.ranks = 1;
+        for (int k = 1; k <= intervals; ++k) {
+            IntervalStats iv;
+            iv.step = k * steps;
+            iv.time_s = iv.step * dt;
+            const double tf = (iv.time_s - 0.5 * steps * dt) / std::sqrt(scale);
+            const double spell = n == 0 && k > spell_from && k <= spell_to ? 1.2 : 1.0;
+            RankStats busy;
+            busy.steps = steps;
+            busy.field = busy.field_mean = 100;
+            busy.interactions = 4000;
+            busy.timers = {
+                {"pairs_s", per_interaction * 4000 * steps * g(tf) * spell * (1 + noise(rng))}};
+            iv.ranks = {busy};
+            r.intervals.push_back(iv);
+        }
+    }
+    nlohmann::json entry{
+        {"terms", {"interactions"}},
+        {"coefficients", {{"interactions", {{"value", per_interaction}, {"se", 0.0}}}}},
+        {"r2", 1.0},
+        {"rse", 0.0},
+        {"points", 80},
+        {"run_level", {{"factor", 1.0}, {"per_setup", nlohmann::json::object()}}}};
+    const std::vector<const SphRun *> pointers{&runs[0], &runs[1]};
+    const auto p = compute_time_profile(entry, pointers).at("dambreak");
+    EXPECT_EQ(p.at("smoothing"), "robust quadratic");
+    const auto t = p.at("froude_time_s").get<std::vector<double>>();
+    const auto f = p.at("factor").get<std::vector<double>>();
+    const auto w = p.at("factor_windowed").get<std::vector<double>>();
+    ASSERT_EQ(t.size(), static_cast<std::size_t>(intervals));
+    double worst = 0, worst_windowed = 0;
+    for (std::size_t k = 0; k < t.size(); ++k) {
+        worst = std::max(worst, std::abs(f[k] / g(t[k]) - 1));
+        worst_windowed = std::max(worst_windowed, std::abs(w[k] / g(t[k]) - 1));
+    }
+    EXPECT_LT(worst, 0.01);
+    EXPECT_GT(worst_windowed, 0.05); // the spell, halved by pooling the rounds
+    // The rounds share their times, so a spell interval is pooled with its twin: +10 %, 10
+    // standard deviations of the noise, and rejected.
+    EXPECT_GE(p.at("intervals_rejected").get<int>(), spell_to - spell_from);
 }

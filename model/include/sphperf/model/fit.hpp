@@ -30,6 +30,17 @@ struct LinearFit {
 LinearFit fit_linear(const std::vector<std::vector<double>> &X, std::span<const double> y,
                      std::vector<std::string> terms);
 
+// Robust least squares (GSL gsl_multifit_robust, Tukey's bisquare): points far from the fit
+// lose their weight, so a stretch of outliers (a slow spell of the host in one calibration
+// run) does not bend it. `weights` are the final robust weights (0 = rejected). Needs more rows
+// than terms; throws std::invalid_argument otherwise.
+struct RobustFit {
+    LinearFit fit;
+    std::vector<double> weights;
+};
+RobustFit fit_robust(const std::vector<std::vector<double>> &X, std::span<const double> y,
+                     std::vector<std::string> terms);
+
 // The thesis' p(n) = m n + r.
 LinearFit fit_line_mr(std::span<const double> n, std::span<const double> y);
 

@@ -66,10 +66,11 @@ LinearFit compute_cost_of(const nlohmann::json &entry, const std::string &setup)
 //     error by 1 % (sessions 9-12), kept to report beside it.
 enum class TermSelection { levelled_one_se, pooled_one_percent };
 // How the cost of an interaction changes as a flow evolves. froude: a profile over Froude time
-// (t / sqrt(scale)) of measured over fitted compute per setup, from the calibration runs, and no
-// time-varying term in the fit; none: the fit alone (with the memory-order term "descents" read
+// (t / sqrt(scale)) of measured over fitted compute per setup, from the calibration runs (a
+// robust quadratic; froude_windowed: a moving ratio, sessions 16-41), and no time-varying term
+// in the fit; none: the fit alone (with the memory-order term "descents" read
 // at simulated time, when selected).
-enum class TimeProfile { froude, none };
+enum class TimeProfile { froude, froude_windowed, none };
 // How the cost fit weighs its points. absolute: seconds per step, so the runs with the longest
 // steps dominate; relative: each point divided by its run's median step, so a small-scale run
 // counts as much as a large one and the held-out error is relative, as the targets are.
@@ -84,10 +85,11 @@ nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &mac
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
 // The Froude-time profile of one compute entry (a fit of one grid and thread count, with its
 // run_level) over those runs: per setup {"froude_time_s": [...], "factor": [...], "runs": n},
-// measured / fitted compute of the busy ranks, rounds at the same times pooled, ratio of sums
-// over +-2 intervals.
+// measured / fitted compute of the busy ranks, rounds at the same times pooled. `factor` is a
+// quadratic in Froude time fitted robustly (bisquare) to the intervals' ratios when `smooth`
+// and there are 8 or more, else the ratio of sums over +-2 intervals (`factor_windowed`).
 nlohmann::json compute_time_profile(const nlohmann::json &entry,
-                                    const std::vector<const SphRun *> &runs);
+                                    const std::vector<const SphRun *> &runs, bool smooth = true);
 
 // Seconds per step one fluid particle and one wall particle add to a rank: the calibrated
 // compute fit of this grid and thread count, with the trace's interactions (and, for the
