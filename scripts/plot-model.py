@@ -428,13 +428,20 @@ def markdown(model, validation, args, out):
              "chosen in session 34 after the table still tank on 3 ranks came out 2-16 % high in 13 of "
              "14 main jobs: **tuned**. As a ratio on the shared core's compute (the model before it, "
              "everywhere above the cores) on the same runs: {o} (ratio-overhead/validation.json)."),
-            (not any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
+            (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
+             "two-rounds",
+             "Calibrated on the runs of round a and Cell+Sorted's of rounds b and c, the median "
+             "run's level per setup, chosen in session 42 after replaying the 21 stored main jobs of "
+             "sessions 37-42 (max within 10 % in 12 jobs against 10, mean max 11.6 % against 12.6 %, "
+             "configurations beyond 10 %: 22 against 29): **tuned**. With rounds a and b only "
+             "(sessions 38-41's calibration) on the same validation runs: {o} "
+             "(two-rounds/validation.json)."),
+            (not any("_list_b" in r["path"] or "_table_b" in r["path"]
+                     for r in model["calibration_runs"]),
              "more-runs",
-             "Calibrated on the runs of round a and Cell+Sorted's of round b only, chosen in "
-             "session 38 after replaying sessions 34-37's 18 main jobs (the jobs' wall medians: "
-             "mean 3.5 % against 3.3 %, median 2.8 % both; max within 10 % in 9 jobs against 8; a "
-             "third less calibration time): **tuned**. With round b's Cell+List and Cell+Table runs and "
-             "Cell+Sorted's round c as well (session 37's calibration) on the same validation "
+             "Cell+List and Cell+Table calibrated on round a only, chosen in session 38 after "
+             "replaying sessions 34-37's 18 main jobs: **tuned**. With round b's Cell+List and "
+             "Cell+Table runs as well (session 37's calibration) on the same validation "
              "runs: {o} (more-runs/validation.json)."),
             (not any("_s0.35_sorted_t2_" in r["path"] for r in model["calibration_runs"]),
              "two-thread-scales",
