@@ -67,93 +67,89 @@ LinearFit LinearFit::from_json(const nlohmann::json &j, const std::string &where
     return f;
 }
 
+namespace {
+// The design matrix, right-hand side and coefficient and covariance outputs of one GSL fit,
+// checked for shape (`what` names the fit in the message).
+struct GslProblem {
+    std::size_t n, p;
+    Owned<gsl_matrix> A, C;
+    Owned<gsl_vector> b, c;
+    GslProblem(const std::vector<std::vector<double>> &X, std::span<const double> y,
+               std::size_t terms, const std::string &what)
+        : n(X.size()), p(terms) {
+        if (n != y.size())
+            throw std::invalid_argument(what + ": X and y differ in length");
+        if (n <= p)
+            throw std::invalid_argument(what + ": " + std::to_string(n) +
+                                        " points cannot determine " + std::to_string(p) +
+                                        " coefficients");
+        A.reset(gsl_matrix_alloc(n, p));
+        C.reset(gsl_matrix_alloc(p, p));
+        b.reset(gsl_vector_alloc(n));
+        c.reset(gsl_vector_alloc(p));
+        for (std::size_t i = 0; i < n; ++i) {
+            if (X[i].size() != p)
+                throw std::invalid_argument(what + ": a row of X has the wrong number of terms");
+            for (std::size_t k = 0; k < p; ++k)
+                gsl_matrix_set(A.get(), i, k, X[i][k]);
+            gsl_vector_set(b.get(), i, y[i]);
+        }
+    }
+    // The solved coefficients, their standard errors and covariance.
+    LinearFit solution(std::vector<std::string> terms) const {
+        LinearFit f;
+        f.terms = std::move(terms);
+        f.points = n;
+        for (std::size_t k = 0; k < p; ++k) {
+            f.coef.push_back(gsl_vector_get(c.get(), k));
+            f.se.push_back(std::sqrt(gsl_matrix_get(C.get(), k, k)));
+            f.cov.emplace_back();
+            for (std::size_t l = 0; l < p; ++l)
+                f.cov.back().push_back(gsl_matrix_get(C.get(), k, l));
+        }
+        return f;
+    }
+};
+} // namespace
+
 LinearFit fit_linear(const std::vector<std::vector<double>> &X, std::span<const double> y,
                      std::vector<std::string> terms) {
-    const std::size_t n = X.size(), p = terms.size();
-    if (n != y.size())
-        throw std::invalid_argument("fit: X and y differ in length");
-    if (n <= p)
-        throw std::invalid_argument("fit: " + std::to_string(n) + " points cannot determine " +
-                                    std::to_string(p) + " coefficients");
-    Owned<gsl_matrix> A(gsl_matrix_alloc(n, p)), C(gsl_matrix_alloc(p, p));
-    Owned<gsl_vector> b(gsl_vector_alloc(n)), c(gsl_vector_alloc(p));
-    for (std::size_t i = 0; i < n; ++i) {
-        if (X[i].size() != p)
-            throw std::invalid_argument("fit: a row of X has the wrong number of terms");
-        for (std::size_t k = 0; k < p; ++k)
-            gsl_matrix_set(A.get(), i, k, X[i][k]);
-        gsl_vector_set(b.get(), i, y[i]);
-    }
-    Owned<gsl_multifit_linear_workspace> work(gsl_multifit_linear_alloc(n, p));
+    GslProblem q(X, y, terms.size(), "fit");
+    Owned<gsl_multifit_linear_workspace> work(gsl_multifit_linear_alloc(q.n, q.p));
     double chisq = 0;
     std::size_t rank = 0;
     // SVD with a relative singular-value cut: a term that is a copy of another is rank lost,
     // which we refuse rather than report meaningless standard errors.
     gsl_set_error_handler_off();
-    if (gsl_multifit_linear_tsvd(A.get(), b.get(), 1e-12, c.get(), C.get(), &chisq, &rank,
+    if (gsl_multifit_linear_tsvd(q.A.get(), q.b.get(), 1e-12, q.c.get(), q.C.get(), &chisq, &rank,
                                  work.get()) != GSL_SUCCESS ||
-        rank < p)
+        rank < q.p)
         throw std::invalid_argument("fit: the terms are linearly dependent on these data");
-    LinearFit f;
-    f.terms = std::move(terms);
-    f.points = n;
-    const double dof = static_cast<double>(n - p);
-    for (std::size_t k = 0; k < p; ++k) {
-        f.coef.push_back(gsl_vector_get(c.get(), k));
-        f.se.push_back(std::sqrt(gsl_matrix_get(C.get(), k, k)));
-        f.cov.emplace_back();
-        for (std::size_t l = 0; l < p; ++l)
-            f.cov.back().push_back(gsl_matrix_get(C.get(), k, l));
-    }
-    const double mean = std::accumulate(y.begin(), y.end(), 0.0) / static_cast<double>(n);
+    LinearFit f = q.solution(std::move(terms));
+    const double mean = std::accumulate(y.begin(), y.end(), 0.0) / static_cast<double>(q.n);
     double sst = 0;
     for (double v : y)
         sst += (v - mean) * (v - mean);
     f.r2 = sst > 0 ? 1.0 - chisq / sst : 1.0;
-    f.rse = std::sqrt(chisq / dof);
+    f.rse = std::sqrt(chisq / static_cast<double>(q.n - q.p));
     return f;
 }
 
 RobustFit fit_robust(const std::vector<std::vector<double>> &X, std::span<const double> y,
                      std::vector<std::string> terms) {
-    const std::size_t n = X.size(), p = terms.size();
-    if (n != y.size())
-        throw std::invalid_argument("robust fit: X and y differ in length");
-    if (n <= p)
-        throw std::invalid_argument("robust fit: " + std::to_string(n) +
-                                    " points cannot determine " + std::to_string(p) +
-                                    " coefficients");
-    Owned<gsl_matrix> A(gsl_matrix_alloc(n, p)), C(gsl_matrix_alloc(p, p));
-    Owned<gsl_vector> b(gsl_vector_alloc(n)), c(gsl_vector_alloc(p));
-    for (std::size_t i = 0; i < n; ++i) {
-        if (X[i].size() != p)
-            throw std::invalid_argument("robust fit: a row of X has the wrong number of terms");
-        for (std::size_t k = 0; k < p; ++k)
-            gsl_matrix_set(A.get(), i, k, X[i][k]);
-        gsl_vector_set(b.get(), i, y[i]);
-    }
+    GslProblem q(X, y, terms.size(), "robust fit");
     Owned<gsl_multifit_robust_workspace> work(
-        gsl_multifit_robust_alloc(gsl_multifit_robust_bisquare, n, p));
+        gsl_multifit_robust_alloc(gsl_multifit_robust_bisquare, q.n, q.p));
     gsl_set_error_handler_off();
     // GSL_EMAXITER still leaves the last iterate, a usable fit; anything else is not.
-    const int status = gsl_multifit_robust(A.get(), b.get(), c.get(), C.get(), work.get());
+    const int status = gsl_multifit_robust(q.A.get(), q.b.get(), q.c.get(), q.C.get(), work.get());
     if (status != GSL_SUCCESS && status != GSL_EMAXITER)
         throw std::invalid_argument(std::string("robust fit: ") + gsl_strerror(status));
     const gsl_multifit_robust_stats st = gsl_multifit_robust_statistics(work.get());
-    RobustFit out;
-    LinearFit &f = out.fit;
-    f.terms = std::move(terms);
-    f.points = n;
-    for (std::size_t k = 0; k < p; ++k) {
-        f.coef.push_back(gsl_vector_get(c.get(), k));
-        f.se.push_back(std::sqrt(gsl_matrix_get(C.get(), k, k)));
-        f.cov.emplace_back();
-        for (std::size_t l = 0; l < p; ++l)
-            f.cov.back().push_back(gsl_matrix_get(C.get(), k, l));
-    }
-    f.r2 = st.Rsq;
-    f.rse = st.sigma;
-    for (std::size_t i = 0; i < n; ++i)
+    RobustFit out{q.solution(std::move(terms)), {}};
+    out.fit.r2 = st.Rsq;
+    out.fit.rse = st.sigma;
+    for (std::size_t i = 0; i < q.n; ++i)
         out.weights.push_back(gsl_vector_get(st.weights, i));
     return out;
 }
