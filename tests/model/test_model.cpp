@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cmath>
+#include <functional>
 #include <numeric>
 #include <random>
 
@@ -992,47 +993,74 @@ TEST(Validate, ReportsTheInlineErrorOfTheRuleBefore) {
     EXPECT_NEAR(s["median"].get<double>(), 0.3, 1e-12);
 }
 
-// A cost per interaction planted as a function of Froude time, g(tF) = 1 + 2 tF, in two rounds
-// of a half-scale run (equal work every interval): the profile recovers g at each interval's
-// Froude time (interval midpoint / sqrt(0.5)), the window's ratio of sums being exact for a
-// line, and idle ranks stay out of it.
-TEST(TimeProfile, RecoversAPlantedCostOverFroudeTime) {
-    constexpr double per_interaction = 2e-8, scale = 0.5, dt = 1e-4;
-    constexpr int steps = 10, intervals = 30;
-    auto g = [](double tf) { return 1 + 2 * tf; };
-    std::vector<SphRun> runs(2);
-    for (auto &r : runs) {
+namespace {
+constexpr double planted_per_interaction = 2e-8, planted_scale = 0.5, planted_dt = 1e-4;
+constexpr int planted_steps = 10;
+// Two rounds of a half-scale dam break on Cell+Table, equal work every interval (100 field
+// particles, 4000 interactions), the busy rank's pair time the planted cost per interaction
+// times factor(round, interval, Froude time of its midpoint); with `idle_rank` a second rank
+// without water whose bookkeeping must stay out of the profile. Also the compute entry that
+// prices an interaction at exactly the planted cost.
+struct PlantedProfile {
+    std::vector<SphRun> runs;
+    nlohmann::json entry;
+    std::vector<const SphRun *> pointers() const { return {&runs[0], &runs[1]}; }
+};
+PlantedProfile planted_profile(int intervals, bool idle_rank,
+                               const std::function<double(std::size_t, int, double)> &factor) {
+    PlantedProfile out;
+    out.runs.resize(2);
+    for (std::size_t n = 0; n < out.runs.size(); ++n) {
+        SphRun &r = out.runs[n];
         r.config.setup = "dambreak";
         r.config.grid = "table";
-        r.config.scale = scale;
-        r.config.dt = dt;
-        r.config.ranks = 2;
+        r.config.scale = planted_scale;
+        r.config.dt = planted_dt;
+        r.config.ranks = idle_rank ? 2 : 1;
         for (int k = 1; k <= intervals; ++k) {
             IntervalStats iv;
-            iv.step = k * steps;
-            iv.time_s = iv.step * dt;
-            const double tf = (iv.time_s - 0.5 * steps * dt) / std::sqrt(scale);
-            RankStats busy, idle;
-            busy.steps = idle.steps = steps;
+            iv.step = k * planted_steps;
+            iv.time_s = iv.step * planted_dt;
+            const double tf =
+                (iv.time_s - 0.5 * planted_steps * planted_dt) / std::sqrt(planted_scale);
+            RankStats busy;
+            busy.steps = planted_steps;
             busy.field = busy.field_mean = 100;
             busy.interactions = 4000;
-            busy.timers = {{"pairs_s", per_interaction * 4000 * steps * g(tf)}, {"wait_s", 0.5}};
-            idle.timers = {{"grid_s", 1.0}}; // bookkeeping of a rank without water: not a cost
-            iv.ranks = {busy, idle};
+            busy.timers = {
+                {"pairs_s", planted_per_interaction * 4000 * planted_steps * factor(n, k, tf)},
+                {"wait_s", 0.5}};
+            iv.ranks = {busy};
+            if (idle_rank) {
+                RankStats idle;
+                idle.steps = planted_steps;
+                idle.timers = {{"grid_s", 1.0}}; // bookkeeping of a rank without water
+                iv.ranks.push_back(idle);
+            }
             r.intervals.push_back(iv);
         }
     }
-    nlohmann::json entry{
+    out.entry = {
         {"terms", {"interactions"}},
-        {"coefficients", {{"interactions", {{"value", per_interaction}, {"se", 0.0}}}}},
+        {"coefficients", {{"interactions", {{"value", planted_per_interaction}, {"se", 0.0}}}}},
         {"r2", 1.0},
         {"rse", 0.0},
-        {"points", 60},
+        {"points", 2 * intervals},
         {"run_level", {{"factor", 1.0}, {"per_setup", nlohmann::json::object()}}}};
-    std::vector<const SphRun *> pointers;
-    for (const auto &r : runs)
-        pointers.push_back(&r);
-    const auto p = compute_time_profile(entry, pointers, false).at("dambreak");
+    return out;
+}
+} // namespace
+
+// A cost per interaction planted as a function of Froude time, g(tF) = 1 + 2 tF, in two rounds
+// of a half-scale run (equal work every interval): the windowed profile recovers g at each
+// interval's Froude time (interval midpoint / sqrt(0.5)), the window's ratio of sums being
+// exact for a line, and idle ranks stay out of it.
+TEST(TimeProfile, RecoversAPlantedCostOverFroudeTime) {
+    constexpr int intervals = 30;
+    auto g = [](double tf) { return 1 + 2 * tf; };
+    const PlantedProfile d =
+        planted_profile(intervals, true, [&](std::size_t, int, double tf) { return g(tf); });
+    const auto p = compute_time_profile(d.entry, d.pointers(), false).at("dambreak");
     const auto t = p.at("froude_time_s").get<std::vector<double>>();
     const auto f = p.at("factor").get<std::vector<double>>();
     ASSERT_EQ(t.size(), static_cast<std::size_t>(intervals)); // the rounds share their times
@@ -1041,7 +1069,10 @@ TEST(TimeProfile, RecoversAPlantedCostOverFroudeTime) {
     // Away from the ends (where the window is cut short) every factor is g at its time.
     for (std::size_t k = 2; k + 2 < t.size(); ++k)
         EXPECT_NEAR(f[k], g(t[k]), 1e-9) << "at Froude time " << t[k];
-    EXPECT_NEAR(t.back(), (intervals * steps - 0.5 * steps) * dt / std::sqrt(scale), 1e-12);
+    EXPECT_NEAR(t.back(),
+                (intervals * planted_steps - 0.5 * planted_steps) * planted_dt /
+                    std::sqrt(planted_scale),
+                1e-12);
 }
 
 // The smoothed profile (--time-profile froude, session 42): a planted quadratic cost over
@@ -1049,44 +1080,16 @@ TEST(TimeProfile, RecoversAPlantedCostOverFroudeTime) {
 // two runs. The robust quadratic recovers the planted curve within 1 % everywhere, spell
 // included, and rejects the spell's intervals; the window's ratio carries half the spell.
 TEST(TimeProfile, RobustQuadraticIgnoresASlowSpellInOneRun) {
-    constexpr double per_interaction = 2e-8, scale = 0.5, dt = 1e-4;
-    constexpr int steps = 10, intervals = 40, spell_from = 10, spell_to = 15;
+    constexpr int intervals = 40, spell_from = 10, spell_to = 15;
     auto g = [](double tf) { return 0.95 + 2.0 * tf + 40.0 * tf * tf; };
     std::mt19937 rng(11);
     std::normal_distribution<double> noise(0.0, 0.01);
-    std::vector<SphRun> runs(2);
-    for (std::size_t n = 0; n < runs.size(); ++n) {
-        SphRun &r = runs[n];
-        r.config.setup = "dambreak";
-        r.config.grid = "table";
-        r.config.scale = scale;
-        r.config.dt = dt;
-        r.config.ranks = 1;
-        for (int k = 1; k <= intervals; ++k) {
-            IntervalStats iv;
-            iv.step = k * steps;
-            iv.time_s = iv.step * dt;
-            const double tf = (iv.time_s - 0.5 * steps * dt) / std::sqrt(scale);
-            const double spell = n == 0 && k > spell_from && k <= spell_to ? 1.2 : 1.0;
-            RankStats busy;
-            busy.steps = steps;
-            busy.field = busy.field_mean = 100;
-            busy.interactions = 4000;
-            busy.timers = {
-                {"pairs_s", per_interaction * 4000 * steps * g(tf) * spell * (1 + noise(rng))}};
-            iv.ranks = {busy};
-            r.intervals.push_back(iv);
-        }
-    }
-    nlohmann::json entry{
-        {"terms", {"interactions"}},
-        {"coefficients", {{"interactions", {{"value", per_interaction}, {"se", 0.0}}}}},
-        {"r2", 1.0},
-        {"rse", 0.0},
-        {"points", 80},
-        {"run_level", {{"factor", 1.0}, {"per_setup", nlohmann::json::object()}}}};
-    const std::vector<const SphRun *> pointers{&runs[0], &runs[1]};
-    const auto p = compute_time_profile(entry, pointers).at("dambreak");
+    const PlantedProfile d =
+        planted_profile(intervals, false, [&](std::size_t run, int k, double tf) {
+            const double spell = run == 0 && k > spell_from && k <= spell_to ? 1.2 : 1.0;
+            return g(tf) * spell * (1 + noise(rng));
+        });
+    const auto p = compute_time_profile(d.entry, d.pointers()).at("dambreak");
     EXPECT_EQ(p.at("smoothing"), "robust quadratic");
     const auto t = p.at("froude_time_s").get<std::vector<double>>();
     const auto f = p.at("factor").get<std::vector<double>>();
