@@ -240,10 +240,10 @@ short_pass() {
     validate_run --rep "$k" 2 val_still_s1_sorted_overlap_r2 --setup still --grid sorted --overlap \
         --steps "$vs_steps" --interval "$interval"
     if [ "$k" -eq "$short_repeats" ]; then
-        local name
-        for name in val_still_s1_sorted_r3 val_dambreak_s1_sorted_t2 val_still_s1_sorted_r2 \
-            val_still_s1_sorted_overlap_r2; do
-            keep_median "$short_repeats" "$name"
+        local rep1
+        for rep1 in "$repeats"/*.rep1.json; do
+            rep1=$(basename "$rep1" .rep1.json)
+            keep_median "$short_repeats" "$rep1"
         done
         val_s=$((val_s + rep_s / short_repeats))
     fi
