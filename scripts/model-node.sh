@@ -311,14 +311,16 @@ mapfile -t cal_reports < <(model_runs)
 val_reports=("$runs"/val_*.json)
 model_and_validate() {
     local dir=$1 rule=$2 profile=$3 weights=${4:-relative} sharing=${5:-replay}
-    local predict_extra=()
+    local predict_extra=() cal_extra=()
     [ -n "${6:-}" ] && read -r -a predict_extra <<<"$6"
+    # CAL_EXTRA: more calibrate options (a comparison model's).
+    [ -n "${CAL_EXTRA:-}" ] && read -r -a cal_extra <<<"$CAL_EXTRA"
     mkdir -p "$dir"
     rm -f "$dir/refused.txt"
     stage "calibration ($rule, time profile $profile)"
     "$build/bin/sphmodel" calibrate --machine "$machine" --runs "${cal_reports[@]}" \
         --term-selection "$rule" --time-profile "$profile" --fit-weights "$weights" \
-        --out "$dir/model.json"
+        "${cal_extra[@]}" --out "$dir/model.json"
 
     stage "predictions ($rule)"
     predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
@@ -399,6 +401,9 @@ if ls "$runs"/cal_dambreak_s0.35_sorted_t2_*.json >/dev/null 2>&1; then
     model_and_validate "$out/two-thread-scales" levelled-one-se froude >/dev/null
     mapfile -t cal_reports < <(model_runs)
 fi
+# The level of all calibration runs pooled through the time profile (sessions 16-42) instead of
+# the fastest repeat of each repeated configuration.
+CAL_EXTRA="--run-level pooled" model_and_validate "$out/pooled-level" levelled-one-se froude >/dev/null
 # The Froude-time profile as the moving ratio of sessions 16-41 instead of the robust quadratic.
 model_and_validate "$out/windowed-profile" levelled-one-se froude-windowed >/dev/null
 model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null

@@ -313,11 +313,19 @@ def markdown(model, validation, args, out):
         if not lvl:
             continue
         factors = ", ".join(f"{r['factor']:.2f}" for r in lvl["runs"])
+        if lvl.get("rule") == "fastest-repeat":
+            takes = ("per setup the fastest run of each repeated configuration, the median over "
+                     "configurations (" + ", ".join(
+                         f"{k} {v['factor']:.3f} from {v['runs']} runs in {v['configurations']} "
+                         f"configuration(s), median run {v['factor_median']:.3f}, mean "
+                         f"{v['factor_mean']:.3f}" for k, v in lvl.get("per_setup", {}).items()) + ")")
+        else:
+            takes = (f"the median run's level ({lvl['factor']:.3f}, mean "
+                     f"{lvl.get('factor_mean', float('nan')):.3f}; per setup: " +
+                     ", ".join(f"{k} {v['factor']:.3f}" for k, v in lvl.get("per_setup", {}).items()) + ")")
         lines.append(f"Machine drift, {c['grid']} grid at {c['threads']} thread(s): the calibration runs took {factors} times the "
-                     f"least-squares fit (spread {lvl['spread_pct']:.0f} %); the model takes the median "
-                     f"run's level ({lvl['factor']:.3f}, mean {lvl.get('factor_mean', float('nan')):.3f}; per setup: " +
-                     ", ".join(f"{k} {v['factor']:.3f}" for k, v in lvl.get("per_setup", {}).items()) +
-                     "). No prediction here is finer than that spread.")
+                     f"least-squares fit (spread {lvl['spread_pct']:.0f} %); the model takes {takes}. "
+                     f"No prediction here is finer than that spread.")
     for t in model.get("time_sharing", []):
         runs = ", ".join(f"{1e3 * r['overhead_s_per_step']:.3f} ms ({r['overhead']:.2f}x"
                          + (f", at {1e3 * r['shared_compute_s_per_step']:.2f} ms of shared compute"
@@ -428,6 +436,16 @@ def markdown(model, validation, args, out):
              "chosen in session 34 after the table still tank on 3 ranks came out 2-16 % high in 13 of "
              "14 main jobs: **tuned**. As a ratio on the shared core's compute (the model before it, "
              "everywhere above the cores) on the same runs: {o} (ratio-overhead/validation.json)."),
+            (any(c.get("run_level", {}).get("rule") == "fastest-repeat" for c in model["compute"]),
+             "pooled-level",
+             "Per setup, a repeated calibration configuration (Cell+Sorted's, three rounds) sets the "
+             "cost level with its fastest run, the median over configurations (calibrate --run-level "
+             "fastest-repeat; the Froude-time profile then carries the shape only, each run's "
+             "intervals at the run's own level), chosen in session 43 after replaying the 23 stored "
+             "main jobs of sessions 37-42 (max within 10 % in 14 jobs against 12, configurations "
+             "beyond 10 %: 20 against 25, mean per-job median 3.27 % against 3.47 %): **tuned**. "
+             "With the level of all runs pooled through the profile (sessions 16-42) on the same "
+             "runs: {o} (pooled-level/validation.json)."),
             (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
              "two-rounds",
              "Calibrated on the runs of round a and Cell+Sorted's of rounds b and c, the median "

@@ -14,6 +14,7 @@
 #include <map>
 #include <numeric>
 #include <set>
+#include <sstream>
 
 namespace sphperf::model {
 
@@ -260,8 +261,18 @@ std::vector<SetupTerm> setup_terms(const std::vector<Point> &pts, const std::vec
     return out;
 }
 
+// A configuration's identity among calibration runs: repeats of it differ only by the machine.
+std::string configuration_key(const RunConfig &c) {
+    std::ostringstream k;
+    k << c.setup << ' ' << c.grid << ' ' << c.scale << ' ' << c.delta << ' ' << c.dt << ' '
+      << c.steps << ' ' << c.ranks << 'x' << c.threads << ' ' << c.decomposition << ' ' << c.overlap
+      << ' ' << c.boundary;
+    return k.str();
+}
+
 json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &runs,
-                 TermSelection rule, TimeProfile profile, FitWeights weights) {
+                 TermSelection rule, TimeProfile profile, FitWeights weights,
+                 RunLevelRule level_rule) {
     const std::vector<Point> pts =
         profile != TimeProfile::none ? common_reach(all_pts, runs) : all_pts;
     // With a Froude-time profile the flow's evolution is the profile's: no term that grows with
@@ -351,15 +362,27 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
     // The level per setup too: the cost of an interaction depends on the flow (measured here,
     // the still tank's runs sit 5-15 % below the dam break's on the stored-list grids, in every
     // main job), and a prediction is always of one setup.
+    // With fastest_repeat, repeats of one configuration give the fastest: on this VM a slow
+    // spell of the host only adds time, and it hit one or two of a configuration's three short
+    // runs in 8 of 23 main jobs (model/NOTES.md, session 43).
     std::map<std::string, std::vector<double>> setup_factors;
-    for (std::size_t k = 0; k < level.groups.size(); ++k)
-        setup_factors[runs.at(static_cast<std::size_t>(level.groups[k])).config.setup].push_back(
-            level.factors[k]);
+    std::map<std::string, std::map<std::string, std::vector<double>>> repeats;
+    for (std::size_t k = 0; k < level.groups.size(); ++k) {
+        const RunConfig &c = runs.at(static_cast<std::size_t>(level.groups[k])).config;
+        setup_factors[c.setup].push_back(level.factors[k]);
+        repeats[c.setup][configuration_key(c)].push_back(level.factors[k]);
+    }
     json per_setup = json::object();
-    for (const auto &[setup, v] : setup_factors)
-        per_setup[setup] = {{"factor", sphperf::median(v)},
-                            {"factor_mean", sphperf::summarize(v).avg},
-                            {"runs", v.size()}};
+    for (const auto &[setup, v] : setup_factors) {
+        const double median = sphperf::median(v), fastest = fastest_repeat_level(repeats.at(setup));
+        per_setup[setup] = {
+            {"factor", level_rule == RunLevelRule::fastest_repeat ? fastest : median},
+            {"factor_median", median},
+            {"factor_fastest_repeat", fastest},
+            {"factor_mean", sphperf::summarize(v).avg},
+            {"runs", v.size()},
+            {"configurations", repeats.at(setup).size()}};
+    }
     std::vector<double> residuals;
     double ss_res = 0, ss_tot = 0;
     const double y_mean = std::accumulate(y.begin(), y.end(), 0.0) / static_cast<double>(y.size());
@@ -384,7 +407,13 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
                                  "compute time; the coefficients are scaled by it"},
                       {"factor", level.median},
                       {"factor_mean", level.mean},
-                      {"uses", "median"},
+                      {"uses", level_rule == RunLevelRule::fastest_repeat
+                                   ? "per setup: the fastest repeat of each configuration, the "
+                                     "median over configurations (per_setup.factor)"
+                                   : "median"},
+                      {"rule", level_rule == RunLevelRule::fastest_repeat ? "fastest-repeat"
+                               : level_rule == RunLevelRule::median       ? "median"
+                                                                          : "pooled"},
                       {"spread_pct", level.spread_pct},
                       {"runs", factors},
                       {"per_setup", per_setup}};
@@ -798,20 +827,39 @@ json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
 // memory order decaying), while a slow spell of the host in one calibration run put a 10-20 %
 // bump into the window's profile just where a scale-2 prediction reads all of its steps
 // (model/NOTES.md, session 42). The windowed profile stays beside it (`factor_windowed`).
-json compute_time_profile(const json &entry, const std::vector<const SphRun *> &runs, bool smooth) {
+json compute_time_profile(const json &entry, const std::vector<const SphRun *> &runs, bool smooth,
+                          bool shape_only) {
     constexpr int half_window = 2;          // intervals each side, per run
     constexpr std::size_t min_smoothed = 8; // fewer pooled intervals: the window alone
     json out = json::object();
     std::map<std::string, std::vector<const SphRun *>> by_setup;
     for (const SphRun *r : runs)
         by_setup[r->config.setup].push_back(r);
+    // Each run's own level over its setup's (shape_only), from the fit's run factors.
+    std::map<std::string, double> own_level;
+    if (shape_only && entry.at("run_level").contains("runs"))
+        for (const auto &r : entry.at("run_level").at("runs"))
+            own_level[r.at("run").get<std::string>()] = r.at("factor").get<double>();
     for (const auto &[setup, rs] : by_setup) {
         const LinearFit f = compute_cost_of(entry, setup);
+        const auto &level = entry.at("run_level");
+        const bool per_setup = level.contains("per_setup") && level.at("per_setup").contains(setup);
+        const double setup_level = per_setup
+                                       ? level.at("per_setup").at(setup).at("factor").get<double>()
+                                       : level.at("factor").get<double>();
+        // Only where a configuration was repeated: without repeats there is no faster run to
+        // choose, and the pooled profile predicted the stored-list grids better (session 43).
+        const bool repeated =
+            per_setup && level.at("per_setup").at(setup).value("configurations", 0) <
+                             level.at("per_setup").at(setup).value("runs", 0);
         struct Sample {
             double t, measured, fitted;
         };
         std::vector<Sample> v;
-        for (const SphRun *r : rs)
+        for (const SphRun *r : rs) {
+            const auto own = own_level.find(r->path);
+            const double at_own =
+                !repeated || own == own_level.end() ? 1.0 : own->second / setup_level;
             for (const auto &iv : r->intervals) {
                 const auto fit = fitted_compute(f, iv);
                 Sample s{0, 0, 0};
@@ -822,13 +870,14 @@ json compute_time_profile(const json &entry, const std::vector<const SphRun *> &
                         continue;
                     steps = rk.steps;
                     s.measured += rk.compute_s();
-                    s.fitted += fit[k] * rk.steps;
+                    s.fitted += fit[k] * rk.steps * at_own;
                 }
                 if (s.fitted <= 0)
                     continue;
                 s.t = froude_midpoint(*r, iv, steps);
                 v.push_back(s);
             }
+        }
         if (v.empty())
             continue;
         std::sort(v.begin(), v.end(), [](const Sample &a, const Sample &b) { return a.t < b.t; });
@@ -1052,7 +1101,8 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     model["regressions"] = regs;
     json compute = json::array();
     for (const auto &[key, pts] : by_grid_threads) {
-        json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile, opt.fit_weights);
+        json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile, opt.fit_weights,
+                             opt.run_level);
         c["grid"] = key.first;
         c["threads"] = key.second;
         std::vector<const SphRun *> mine;
@@ -1062,7 +1112,8 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
         c["segment_shares"] = segment_shares(mine);
         if (opt.time_profile != TimeProfile::none) {
             const bool smooth = opt.time_profile == TimeProfile::froude;
-            c["time_profile"] = compute_time_profile(c, mine, smooth);
+            const bool shape_only = opt.run_level != RunLevelRule::pooled;
+            c["time_profile"] = compute_time_profile(c, mine, smooth, shape_only);
             c["time_profile"]["method"] =
                 std::string("per setup, measured / fitted compute of the busy ranks of the "
                             "calibration runs by Froude time (interval midpoint / sqrt(scale)), "

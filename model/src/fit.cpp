@@ -385,6 +385,16 @@ RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X
     return level;
 }
 
+double fastest_repeat_level(const std::map<std::string, std::vector<double>> &by_configuration) {
+    std::vector<double> fastest;
+    for (const auto &[key, f] : by_configuration)
+        if (!f.empty())
+            fastest.push_back(*std::min_element(f.begin(), f.end()));
+    if (fastest.empty())
+        throw std::invalid_argument("fastest_repeat_level: no runs");
+    return median(fastest);
+}
+
 LinearFit scaled(LinearFit f, double factor) {
     for (auto &c : f.coef)
         c *= factor;

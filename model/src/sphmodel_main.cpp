@@ -21,6 +21,7 @@ struct Options {
     std::string term_selection = "levelled-one-se";
     std::string time_profile = "froude";
     std::string fit_weights = "relative";
+    std::string run_level = "fastest-repeat";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -65,6 +66,14 @@ int run(int argc, char **argv) {
                     "step, so small-scale runs count as much as large ones)")
         ->capture_default_str()
         ->check(CLI::IsMember({"absolute", "relative"}));
+    cal->add_option("--run-level", o.run_level,
+                    "A setup's cost level from its calibration runs: fastest-repeat (the fastest "
+                    "run of each repeated configuration, the median over configurations; the "
+                    "time profile carries the shape only), median (the median run, the same "
+                    "profile) or pooled (the pooled level of all runs, through the profile: "
+                    "sessions 16-42)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"fastest-repeat", "median", "pooled"}));
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
@@ -168,7 +177,10 @@ int run(int argc, char **argv) {
                        o.time_profile == "none"              ? TimeProfile::none
                        : o.time_profile == "froude-windowed" ? TimeProfile::froude_windowed
                                                              : TimeProfile::froude,
-                       o.fit_weights == "relative" ? FitWeights::relative : FitWeights::absolute});
+                       o.fit_weights == "relative" ? FitWeights::relative : FitWeights::absolute,
+                       o.run_level == "pooled"   ? RunLevelRule::pooled
+                       : o.run_level == "median" ? RunLevelRule::median
+                                                 : RunLevelRule::fastest_repeat});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -4,6 +4,7 @@
 #include "sphperf/model/jitter.hpp"
 #include "sphperf/model/placement.hpp"
 #include "sphperf/model/runtime.hpp"
+#include "sphperf/stats.hpp"
 
 #include <gtest/gtest.h>
 
@@ -274,6 +275,19 @@ TEST(Fit, RunLevelIsTheMedianRunsAndIgnoresOneSlowRun) {
     const double f4 = level.factors[0];
     EXPECT_NEAR(level.mean, (4 * f4 + level.factors[4]) / 5, 0.02 * f4);
     EXPECT_GT(level.mean, level.median);
+}
+
+// Session 43's level: three repeats of one configuration, two of them hit by slow spells
+// (+12 %, +25 %), and one run of another configuration. The fastest repeat stands for the
+// first, and the level is the median over the two configurations; the median over runs is
+// pulled up by the spells.
+TEST(Fit, FastestRepeatLevelIgnoresSlowSpellsOnRepeats) {
+    const std::map<std::string, std::vector<double>> runs = {
+        {"dambreak s0.5 2x1", {1.12, 1.00, 1.25}}, {"dambreak s0.7 2x1", {1.04}}};
+    EXPECT_NEAR(fastest_repeat_level(runs), 1.02, 1e-12);
+    EXPECT_NEAR(sphperf::median(std::vector<double>{1.12, 1.00, 1.25, 1.04}), 1.08, 1e-12);
+    EXPECT_NEAR(fastest_repeat_level({{"one run", {0.97}}}), 0.97, 1e-12);
+    EXPECT_THROW(fastest_repeat_level({}), std::invalid_argument);
 }
 
 TEST(Workload, RecutFollowsTheAppsSlabsAndEdgeColumns) {
@@ -1105,4 +1119,40 @@ TEST(TimeProfile, RobustQuadraticIgnoresASlowSpellInOneRun) {
     // The rounds share their times, so a spell interval is pooled with its twin: +10 %, 10
     // standard deviations of the noise, and rejected.
     EXPECT_GE(p.at("intervals_rejected").get<int>(), spell_to - spell_from);
+}
+
+// The shape-only profile (--run-level fastest-repeat, session 43): two repeats of one
+// configuration, the second 15 % slower throughout (a slow host), on a planted cost g over
+// Froude time. Each run's intervals fitted at its own level give g itself, so the level stays
+// the rule's (the fastest repeat, 1.0); the pooled profile carries the runs' mean level, 7.5 %
+// above g, and overrides it.
+TEST(TimeProfile, ShapeOnlyProfileLeavesTheLevelToTheRepeatsRule) {
+    constexpr int intervals = 30;
+    auto g = [](double tf) { return 1 + 2 * tf; };
+    PlantedProfile d = planted_profile(intervals, false, [&](std::size_t run, int, double tf) {
+        return g(tf) * (run == 1 ? 1.15 : 1.0);
+    });
+    d.runs[0].path = "round_a.json";
+    d.runs[1].path = "round_b.json";
+    // The run factors as calibrate measures them (measured / fitted over the fit's window:
+    // here the planted shape's mean cancels, so only the runs' ratio matters).
+    d.entry["run_level"]["runs"] = {{{"run", "round_a.json"}, {"factor", 1.0}},
+                                    {{"run", "round_b.json"}, {"factor", 1.15}}};
+    d.entry["run_level"]["per_setup"] = {
+        {"dambreak", {{"factor", 1.0}, {"runs", 2}, {"configurations", 1}}}};
+    const auto shape = compute_time_profile(d.entry, d.pointers(), false, true).at("dambreak");
+    const auto pooled = compute_time_profile(d.entry, d.pointers(), false, false).at("dambreak");
+    const auto t = shape.at("froude_time_s").get<std::vector<double>>();
+    const auto fs = shape.at("factor").get<std::vector<double>>();
+    const auto fp = pooled.at("factor").get<std::vector<double>>();
+    ASSERT_EQ(t.size(), static_cast<std::size_t>(intervals));
+    for (std::size_t k = 2; k + 2 < t.size(); ++k) {
+        EXPECT_NEAR(fs[k], g(t[k]), 1e-9) << "at Froude time " << t[k];
+        EXPECT_NEAR(fp[k], 1.075 * g(t[k]), 1e-9) << "at Froude time " << t[k];
+    }
+    // Without repeats (one run per configuration) there is no faster run to prefer: the
+    // profile stays pooled.
+    d.entry["run_level"]["per_setup"]["dambreak"]["configurations"] = 2;
+    const auto single = compute_time_profile(d.entry, d.pointers(), false, true).at("dambreak");
+    EXPECT_EQ(single.at("factor"), pooled.at("factor"));
 }

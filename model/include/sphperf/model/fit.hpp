@@ -103,6 +103,12 @@ struct RunLevel {
 RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X,
                    std::span<const double> y, std::span<const int> groups);
 
+// A cost level from runs grouped by configuration (measured / fitted per run): the fastest run of
+// each configuration, then the median over configurations. On a host whose disturbances only
+// add time, the fastest of identical runs is the least disturbed; one configuration's runs
+// cannot outvote another's.
+double fastest_repeat_level(const std::map<std::string, std::vector<double>> &by_configuration);
+
 // The fit scaled by a factor: coefficients, standard errors and covariance (so a level applied
 // after the fit keeps its relative uncertainty).
 LinearFit scaled(LinearFit f, double factor);

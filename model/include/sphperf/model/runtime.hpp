@@ -75,11 +75,20 @@ enum class TimeProfile { froude, froude_windowed, none };
 // steps dominate; relative: each point divided by its run's median step, so a small-scale run
 // counts as much as a large one and the held-out error is relative, as the targets are.
 enum class FitWeights { absolute, relative };
+// How a setup's cost level is set from its calibration runs (measured / fitted compute per run).
+//   fastest_repeat: per configuration (scale, ranks, threads, steps...) the fastest of its
+//     repeated runs, then the median over configurations; the time profile carries the shape
+//     over Froude time only (each run's intervals at the run's own level) (session 43);
+//   median: the median run, the profile as for fastest_repeat;
+//   pooled: the median run, but the time profile carries the pooled level of all runs, which
+//     overrides it (sessions 16-42).
+enum class RunLevelRule { fastest_repeat, median, pooled };
 struct CalibrateOptions {
     bool allow_other_host = false;
     TermSelection term_selection = TermSelection::levelled_one_se;
     TimeProfile time_profile = TimeProfile::froude;
     FitWeights fit_weights = FitWeights::relative;
+    RunLevelRule run_level = RunLevelRule::fastest_repeat;
 };
 nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
@@ -88,8 +97,11 @@ nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &mac
 // measured / fitted compute of the busy ranks, rounds at the same times pooled. `factor` is a
 // quadratic in Froude time fitted robustly (bisquare) to the intervals' ratios when `smooth`
 // and there are 8 or more, else the ratio of sums over +-2 intervals (`factor_windowed`).
+// With `shape_only`, each run's intervals are fitted at the run's own level (run_level/runs),
+// so the profile is the cost's shape over Froude time and the setup's level stays the rule's.
 nlohmann::json compute_time_profile(const nlohmann::json &entry,
-                                    const std::vector<const SphRun *> &runs, bool smooth = true);
+                                    const std::vector<const SphRun *> &runs, bool smooth = true,
+                                    bool shape_only = false);
 
 // Seconds per step one fluid particle and one wall particle add to a rank: the calibrated
 // compute fit of this grid and thread count, with the trace's interactions (and, for the
