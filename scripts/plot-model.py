@@ -448,8 +448,8 @@ def markdown(model, validation, args, out):
              "runs: {o} (pooled-level/validation.json)."),
             (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
              "two-rounds",
-             "Calibrated on the runs of round a and Cell+Sorted's of rounds b and c, the median "
-             "run's level per setup, chosen in session 42 after replaying the 21 stored main jobs of "
+             "Calibrated on the runs of round a and Cell+Sorted's of rounds b and c (a median "
+             "run's level per setup then), chosen in session 42 after replaying the 21 stored main jobs of "
              "sessions 37-42 (max within 10 % in 12 jobs against 10, mean max 11.6 % against 12.6 %, "
              "configurations beyond 10 %: 22 against 29): **tuned**. With rounds a and b only "
              "(sessions 38-41's calibration) on the same validation runs: {o} "
