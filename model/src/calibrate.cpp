@@ -355,7 +355,9 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
     const std::vector<std::string> &best = chosen.terms;
     const std::vector<std::vector<double>> X = design(best, false), Xw = design(best, true);
     // Least squares picks the shape (which terms, in what ratio); the level is the median
-    // calibration run's, so one run measured while the machine was slow does not set it.
+    // calibration run's, and per setup the rule's (below). Where a time profile is fitted, a
+    // pooled profile carries the runs' pooled level and overrides it (--run-level pooled, and
+    // setups without repeats); a shape-only one leaves it (compute_time_profile).
     const LinearFit ls = fit_levelled(Xw, yw, best, setups).fit;
     const RunLevel level = run_level(ls, Xw, yw, groups);
     const LinearFit f = scaled(ls, level.median);
