@@ -7,9 +7,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <map>
+#include <numeric>
 #include <sstream>
 
 using namespace sphperf::testing;
@@ -380,6 +383,58 @@ TEST(ModelCli, CostTermsAreFittedOverTheFlowEveryRunCovers) {
         EXPECT_EQ(c["fit_window"]["points_used"].get<int>(), profile == "froude" ? early : all);
         EXPECT_EQ(c["points"].get<int>(), profile == "froude" ? early : all);
     }
+}
+
+// Session 43's level rule: a second run of the 2-rank configuration, 20 % slower in every
+// compute timer (a slow spell of the host), as a repeat. With --run-level fastest-repeat (the
+// default) the setup's level is the median over its two configurations of each one's fastest
+// run, so the slow repeat is not in it; with pooled the median run's, and the profile carries
+// the pooled level, the slow repeat's share in it. Run 3 (time-shared) stays out of the fit.
+TEST(ModelCli, RunLevelTakesTheFastestRepeat) {
+    const auto &f = fixture();
+    auto slow = load(f.run2);
+    for (auto &iv : slow["intervals"])
+        for (auto &rk : iv["ranks"])
+            for (const char *t : {"pairs_s", "grid_s", "comp_s", "idsort_s"})
+                if (rk["timers"].contains(t))
+                    rk["timers"][t] = rk["timers"][t].get<double>() * 1.2;
+    const auto repeat = f.dir / "run2_slow_repeat.json";
+    std::ofstream(repeat) << slow.dump();
+    std::map<std::string, nlohmann::json> entry;
+    for (const std::string rule : {"fastest-repeat", "pooled"}) {
+        const auto out = f.dir / ("model_level_" + rule + ".json");
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+                " --run-level " + rule + " --runs " + f.run1.string() + " " + f.run2.string() +
+                " " + repeat.string() + " --out " + out.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        entry[rule] = load(out)["compute"][0];
+        const auto &level = entry[rule]["run_level"];
+        EXPECT_EQ(level["rule"], rule);
+        std::map<std::string, double> factor;
+        for (const auto &run : level["runs"])
+            factor[fs::path(run["run"].get<std::string>()).filename().string()] =
+                run["factor"].get<double>();
+        ASSERT_EQ(factor.size(), 3u);
+        EXPECT_NEAR(factor["run2_slow_repeat.json"] / factor["run2.json"], 1.2, 0.01);
+        const auto &d = level["per_setup"]["dambreak"];
+        EXPECT_EQ(d["runs"], 3);
+        EXPECT_EQ(d["configurations"], 2);
+        const double fastest = 0.5 * (factor["run1.json"] + factor["run2.json"]);
+        EXPECT_NEAR(d["factor_fastest_repeat"].get<double>(), fastest, 1e-9);
+        std::vector<double> all;
+        for (const auto &[name, v] : factor)
+            all.push_back(v);
+        std::sort(all.begin(), all.end());
+        EXPECT_NEAR(d["factor_median"].get<double>(), all[1], 1e-9);
+        EXPECT_NEAR(d["factor"].get<double>(), rule == "pooled" ? all[1] : fastest, 1e-9);
+    }
+    // The pooled profile carries the slow repeat's share; the shape-only one does not.
+    auto mean_profile = [](const nlohmann::json &c) {
+        const auto v = c["time_profile"]["dambreak"]["factor"].get<std::vector<double>>();
+        return std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+    };
+    EXPECT_GT(mean_profile(entry["pooled"]), 1.03 * mean_profile(entry["fastest-repeat"]));
 }
 
 // Relative weights (the default) and absolute ones: the held-out score carries its unit in its
@@ -1005,6 +1060,8 @@ INSTANTIATE_TEST_SUITE_P(
                       "--overlap needs --grid sorted"},
         BadModelInput{"zero_nodes", "predict --model MODEL --scale 0.5 --nodes 0 --steps 10",
                       "--nodes"},
+        BadModelInput{"unknown_run_level",
+                      "calibrate --machine MACHINE --runs RUN --run-level luckiest", "luckiest"},
         BadModelInput{"negative_max_error",
                       "validate --max-error -1 --prediction MODEL --measured RUN", "-1"}),
     [](const auto &info) { return std::string(info.param.name); });
