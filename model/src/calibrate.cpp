@@ -36,12 +36,21 @@ double RankWork::value(const std::string &term) const {
     throw std::invalid_argument("unknown cost term " + term);
 }
 
+namespace {
+// A compute entry's level record of one setup (run_level/per_setup/SETUP), or null.
+const nlohmann::json *setup_level_of(const nlohmann::json &entry, const std::string &setup) {
+    const auto &level = entry.at("run_level");
+    if (!level.contains("per_setup") || !level.at("per_setup").contains(setup))
+        return nullptr;
+    return &level.at("per_setup").at(setup);
+}
+} // namespace
+
 LinearFit compute_cost_of(const nlohmann::json &entry, const std::string &setup) {
     LinearFit f = LinearFit::from_json(entry, "model compute");
-    const auto &level = entry.at("run_level");
-    if (level.contains("per_setup") && level.at("per_setup").contains(setup))
-        f = scaled(f, level.at("per_setup").at(setup).at("factor").get<double>() /
-                          level.at("factor").get<double>());
+    if (const auto *s = setup_level_of(entry, setup))
+        f = scaled(f, s->at("factor").get<double>() /
+                          entry.at("run_level").at("factor").get<double>());
     return f;
 }
 
@@ -844,16 +853,13 @@ json compute_time_profile(const json &entry, const std::vector<const SphRun *> &
             own_level[r.at("run").get<std::string>()] = r.at("factor").get<double>();
     for (const auto &[setup, rs] : by_setup) {
         const LinearFit f = compute_cost_of(entry, setup);
-        const auto &level = entry.at("run_level");
-        const bool per_setup = level.contains("per_setup") && level.at("per_setup").contains(setup);
-        const double setup_level = per_setup
-                                       ? level.at("per_setup").at(setup).at("factor").get<double>()
-                                       : level.at("factor").get<double>();
+        const auto *per_setup = setup_level_of(entry, setup);
+        const double setup_level = per_setup ? per_setup->at("factor").get<double>()
+                                             : entry.at("run_level").at("factor").get<double>();
         // Only where a configuration was repeated: without repeats there is no faster run to
         // choose, and the pooled profile predicted the stored-list grids better (session 43).
         const bool repeated =
-            per_setup && level.at("per_setup").at(setup).value("configurations", 0) <
-                             level.at("per_setup").at(setup).value("runs", 0);
+            per_setup && per_setup->value("configurations", 0) < per_setup->value("runs", 0);
         struct Sample {
             double t, measured, fitted;
         };
