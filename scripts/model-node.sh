@@ -110,8 +110,9 @@ fi
 short_repeats=3
 # The model calibrates on 24 runs (session 42): Cell+List's and Cell+Table's in round a only,
 # Cell+Sorted's short ones (half-scale still tanks at 2, 3 and 4 ranks and at 2 threads, dam
-# breaks at 0.5 x 2 ranks and 0.7 x 2 threads) in rounds a, b and c, the median run's level
-# per setup. Sessions 38-41 read rounds a and b only (18 runs): replayed on the 21 stored main
+# breaks at 0.5 x 2 ranks and 0.7 x 2 threads) in rounds a, b and c; since session 43 each
+# repeated configuration's fastest run sets its setup's level (calibrate --run-level
+# fastest-repeat; the pooled level before it is validated beside, pooled-level/). Sessions 38-41 read rounds a and b only (18 runs): replayed on the 21 stored main
 # jobs of sessions 37-42 with the robust profile, a third round took the jobs' max within 10 %
 # from 10 to 12 of 21 (mean max 12.6 -> 11.6 %, configurations beyond 10 %: 29 -> 22; the sorted
 # still tanks' sd 9.5 -> 8.1 % on 2 ranks, 8.3 -> 5.4 % on 3), for 6 s more calibration
@@ -124,7 +125,7 @@ more_runs=1
 
 # Calibration runs in two rounds, one before the validation runs and one amid them (Cell+Sorted's
 # short runs also in a third, between them): the machine's speed drifts by
-# 10-35 % over minutes, and the model takes the median run's level. The dam
+# 10-35 % over minutes, and a repeated configuration's fastest run sets the level. The dam
 # breaks on Cell+List and Cell+Table (at half scale 20 of the 40 s of two rounds) run once, at
 # scale 0.35 for 920 steps (1.2 s each against 4.5 s): re-run on session 16's stored runs with
 # such runs in place of the half-scale ones, wall median 3.0 -> 2.8 %, every list and table
