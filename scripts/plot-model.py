@@ -73,6 +73,17 @@ def scaling(predictions, validation, out):
         wall = [c["wall_s"] for c in p["configurations"]]
         # A single rank count is a marker, not an invisible one-point line.
         line, = axes[0].plot(ranks, wall, "-" if len(ranks) > 1 else "x", label=f"{key} predicted")
+        # The prediction's band (+-2 sd of the calibration runs' scatter, session 44).
+        bands = [c.get("wall_band") for c in p["configurations"]]
+        if all(bands):
+            lo = [b["low_s"] for b in bands]
+            hi = [b["high_s"] for b in bands]
+            if len(ranks) > 1:
+                axes[0].fill_between(ranks, lo, hi, color=line.get_color(), alpha=0.12, linewidth=0)
+            else:
+                axes[0].errorbar(ranks, wall, yerr=[[w - l for w, l in zip(wall, lo)],
+                                                    [h - w for w, h in zip(wall, hi)]],
+                                 fmt="none", color=line.get_color(), alpha=0.5, capsize=3)
         mr = [(c["ranks"], measured.get((q["setup"], q["grid"], q["scale"], c["ranks"],
                                          q["threads"], dec, overlap)))
               for c in p["configurations"]]
@@ -103,7 +114,8 @@ def scaling(predictions, validation, out):
     # One legend, outside the panels, so that it hides no point.
     handles, labels = axes[0].get_legend_handles_labels()
     axes[2].legend(handles, labels, fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0))
-    fig.suptitle("Predicted (lines) and measured (dots) wall time, speed-up, efficiency (thesis Fig. 4.9)")
+    fig.suptitle("Predicted (lines; shaded: +-2 sd of the calibration runs' scatter) and measured (dots) "
+                 "wall time, speed-up, efficiency (thesis Fig. 4.9)")
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)
@@ -363,9 +375,15 @@ def markdown(model, validation, args, out):
                      f"(**tuned**; the proportional form's figures on those runs are in model/NOTES.md).")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
-                 "compute | comm | wait | idle | pairs | pairs (regression) | exports (edge) | "
+                 "band z | compute | comm | wait | idle | pairs | pairs (regression) | exports (edge) | "
                  "exports (regression) | peak RSS (MB, error) |")
-    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    def band_z(r):
+        b = r.get("wall_band")
+        if not b:
+            return "-"
+        return f"{b['z']:+.1f}" + ("" if b["within"] else " (outside)")
+
     def rss(r):
         m = r.get("peak_rss_bytes")
         return f"{m['measured_max_rank'] / 1e6:.1f}, {100 * m['error']:+.1f} %" if m else "-"
@@ -378,7 +396,8 @@ def markdown(model, validation, args, out):
             f"{' overlap' if r.get('overlap') else ''} | "
             f"{r['scale']:g} | {r['ranks']} x {r['threads']}"
             f"{' (shared)' if r['oversubscribed'] else ''} | {r['steps']} | {r['measured_wall_s']:.2f} | "
-            f"{r['predicted_wall_s']:.2f} | **{pct(r['wall_error'])}** | {pct(ph['compute']['error'])} | "
+            f"{r['predicted_wall_s']:.2f} | **{pct(r['wall_error'])}** | {band_z(r)} | "
+            f"{pct(ph['compute']['error'])} | "
             f"{pct(ph['comm']['error'])} | {pct(ph['wait']['error'])} | "
             f"{pct(ph['idle']['error']) if ph['idle']['measured_s'] > 0 or ph['idle']['predicted_s'] > 0 else '-'} | "
             f"{pct(r['pairs_per_step']['error'])} | {pct(r['pairs_per_step']['error_regression'])} | "
@@ -389,6 +408,18 @@ def markdown(model, validation, args, out):
     if s["wall_abs_error"]:
         lines.append(f"Total wall time |error|: median {100 * s['wall_abs_error']['median']:.1f} %, "
                      f"max {100 * s['wall_abs_error']['max']:.1f} % (targets 5 % and 10 %).")
+        band = s.get("wall_band")
+        scatter = model.get("level_scatter", {}).get("per_threads", [])
+        if band and scatter:
+            per = ", ".join(f"{100 * e['log_sd']:.1f} % at {e['threads']} thread(s) ({e['runs']} runs, "
+                            f"{e['dof']} degrees of freedom)" for e in scatter)
+            lines.append(f"The calibration runs scatter about their setup's level by {per} (standard "
+                         f"deviation of ln(time), pooled over the grids); each prediction carries a band of "
+                         f"+-{band['sds']:g} of it (`wall_band`; column \"band z\": ln(measured / predicted) in "
+                         f"those deviations). Measured within the band: {band['within']} of {band['count']} "
+                         f"configurations, median |z| {band['median_abs_z']:.2f}. The band is how far one run "
+                         f"on this host may land from a right prediction, not a target: where it is wider than "
+                         f"the 10 % target, a miss inside it is within this host's own run-to-run noise.")
         def untuned(subdir):
             """The same runs through an earlier model beside the results: its wall |error| line."""
             other = os.path.join(args.dir, subdir, "validation.json")

@@ -37,6 +37,41 @@ double RankWork::value(const std::string &term) const {
 }
 
 namespace {
+using nlohmann::json;
+
+json scatter_json(const LevelScatter &s) {
+    return {{"log_sd", s.log_sd()}, {"dof", s.dof}, {"runs", s.runs}, {"sum_sq", s.sum_sq}};
+}
+
+// The calibration runs' scatter around their setup's level (run_level.scatter of each compute
+// entry), pooled over the grids of one thread count: a table or list entry has 3 runs in 2
+// setups, one degree of freedom, too few for a figure of its own, while the host's noise is
+// shared by the grids run at the same thread count (model/NOTES.md, session 44). A prediction
+// carries it as its band (predict: wall_band).
+json pooled_level_scatter(const json &compute) {
+    std::map<int, LevelScatter> by_threads;
+    std::map<int, std::vector<std::string>> grids;
+    for (const auto &c : compute) {
+        const auto &sc = c.at("run_level").at("scatter");
+        const int t = c.at("threads").get<int>();
+        by_threads[t] += LevelScatter{sc.at("sum_sq").get<double>(), sc.at("dof").get<int>(),
+                                      sc.at("runs").get<int>()};
+        grids[t].push_back(c.at("grid").get<std::string>());
+    }
+    json per = json::array();
+    for (const auto &[t, s] : by_threads) {
+        json e = scatter_json(s);
+        e["threads"] = t;
+        e["grids"] = grids.at(t);
+        per.push_back(e);
+    }
+    return {{"method", "per thread count, the pooled standard deviation of ln(measured / fitted "
+                       "compute) of the calibration runs about their setup's mean, over the "
+                       "grids' compute fits (degrees of freedom: runs less setups per fit); "
+                       "predict gives each configuration a band of +-2 of it (wall_band)"},
+            {"per_threads", per}};
+}
+
 // A compute entry's level record of one setup (run_level/per_setup/SETUP), or null.
 const nlohmann::json *setup_level_of(const nlohmann::json &entry, const std::string &setup) {
     const auto &level = entry.at("run_level");
@@ -427,7 +462,8 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
                                                                           : "pooled"},
                       {"spread_pct", level.spread_pct},
                       {"runs", factors},
-                      {"per_setup", per_setup}};
+                      {"per_setup", per_setup},
+                      {"scatter", scatter_json(level_scatter(setup_factors))}};
     j[cv_key] = chosen.score.rmse;
     j[cv_se_key] = chosen.score.rmse_se;
     j["cv_run_rel_rms"] = chosen.cv_run;
@@ -1139,6 +1175,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
                          std::to_string(cores) +
                          " cores: the compute cost needs at least one run within them");
     model["compute"] = compute;
+    model["level_scatter"] = pooled_level_scatter(compute);
     model["time_sharing"] = time_sharing(runs, compute, cores);
     if (json j = jitter(runs, compute, cores); !j.is_null())
         model["jitter"] = j;

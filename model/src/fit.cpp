@@ -395,6 +395,39 @@ double fastest_repeat_level(const std::map<std::string, std::vector<double>> &by
     return median(fastest);
 }
 
+LevelScatter &LevelScatter::operator+=(const LevelScatter &o) {
+    sum_sq += o.sum_sq;
+    dof += o.dof;
+    runs += o.runs;
+    return *this;
+}
+
+double LevelScatter::log_sd() const {
+    return dof > 0 ? std::sqrt(sum_sq / dof) : 0.0;
+}
+
+LevelScatter level_scatter(const std::map<std::string, std::vector<double>> &factors_by_setup) {
+    LevelScatter s;
+    for (const auto &[setup, factors] : factors_by_setup) {
+        if (factors.empty())
+            continue;
+        std::vector<double> logs;
+        for (const double f : factors) {
+            if (!(f > 0) || !std::isfinite(f))
+                throw std::invalid_argument("level_scatter: factor " + std::to_string(f) +
+                                            " of setup " + setup + " is not positive and finite");
+            logs.push_back(std::log(f));
+        }
+        const double mean =
+            std::accumulate(logs.begin(), logs.end(), 0.0) / static_cast<double>(logs.size());
+        for (const double l : logs)
+            s.sum_sq += (l - mean) * (l - mean);
+        s.dof += static_cast<int>(logs.size()) - 1;
+        s.runs += static_cast<int>(logs.size());
+    }
+    return s;
+}
+
 LinearFit scaled(LinearFit f, double factor) {
     for (auto &c : f.coef)
         c *= factor;

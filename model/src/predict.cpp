@@ -448,6 +448,27 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     }
     return out;
 }
+// The band a prediction of `wall` seconds carries: +-wall_band_sds standard deviations of ln(time)
+// of the calibration runs about their setup's level at this thread count (calibrate:
+// level_scatter), null for a model without it or without a degree of freedom. It says how far one
+// run on this host may land from the prediction when the model is right (model/NOTES.md, session
+// 44).
+json wall_band(const json &model, int threads, double wall) {
+    if (!model.contains("level_scatter"))
+        return nullptr;
+    for (const auto &e : model.at("level_scatter").at("per_threads")) {
+        if (e.at("threads").get<int>() != threads || e.at("dof").get<int>() < 1)
+            continue;
+        const double sd = e.at("log_sd").get<double>();
+        return {{"log_sd", sd},
+                {"dof", e.at("dof")},
+                {"sds", wall_band_sds},
+                {"low_s", wall * std::exp(-wall_band_sds * sd)},
+                {"high_s", wall * std::exp(wall_band_sds * sd)}};
+    }
+    return nullptr;
+}
+
 } // namespace
 
 ColumnWeights balance_weights(const json &model, const std::string &setup, const std::string &grid,
@@ -761,6 +782,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                          0)
                             .source},
                  {"wall_s", wall},
+                 {"wall_band", wall_band(model, req.threads, wall)},
                  {"totals",
                   {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},
                  {"first_step_all_ranks_busy",

@@ -44,12 +44,41 @@ const json *match(const std::vector<json> &predictions, const SphRun &m) {
     }
     return nullptr;
 }
+
+// A measured wall time against the prediction's band (predict: wall_band, +-wall_band_sds
+// standard deviations of ln(time)); null without a band. Appends |z| to `z_abs`.
+json band_check(const json &band, double predicted, double measured, std::vector<double> &z_abs) {
+    if (band.is_null() || !(predicted > 0) || !(measured > 0))
+        return nullptr;
+    const double sd = band.at("log_sd").get<double>();
+    if (!(sd > 0))
+        return nullptr;
+    const double z = std::log(measured / predicted) / sd;
+    z_abs.push_back(std::abs(z));
+    return {{"log_sd", sd},
+            {"low_s", band.at("low_s")},
+            {"high_s", band.at("high_s")},
+            {"z", z},
+            {"within", std::abs(z) <= wall_band_sds}};
+}
+
+json band_summary(const std::vector<double> &z_abs) {
+    if (z_abs.empty())
+        return nullptr;
+    const auto within =
+        std::count_if(z_abs.begin(), z_abs.end(), [](double z) { return z <= wall_band_sds; });
+    return {{"within", within},
+            {"sds", wall_band_sds},
+            {"count", z_abs.size()},
+            {"median_abs_z", median(std::vector<double>(z_abs))}};
+}
 } // namespace
 
 json validate(const json &header, const std::vector<json> &predictions,
               const std::vector<SphRun> &measured, const ValidateOptions &opt, bool &exceeded) {
     json out = header;
     json rows = json::array(), unmatched = json::array();
+    std::vector<double> band_z; // |ln(measured / predicted)| / the band's standard deviation
     std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors,
         memory_errors;
     // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
@@ -223,6 +252,8 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"measured_wall_s", m.wall_s},
                  {"predicted_wall_s", p->at("wall_s")},
                  {"wall_error", err},
+                 {"wall_band", band_check(p->value("wall_band", json(nullptr)),
+                                          p->at("wall_s").get<double>(), m.wall_s, band_z)},
                  {"first_step_all_ranks_busy", onset},
                  {"phases",
                   {{"compute", phase("compute_s", compute)},
@@ -279,6 +310,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
         {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
         {"peak_rss_abs_error", summary(memory_errors)},
+        {"wall_band", band_summary(band_z)},
         {"max_error", opt.max_error ? json(*opt.max_error) : json(nullptr)},
         {"exceeded", exceeded}};
     return out;
@@ -344,6 +376,13 @@ std::string calibration_table(const json &m) {
                      names.c_str());
         }
     }
+    if (m.contains("level_scatter"))
+        for (const auto &e : m.at("level_scatter").at("per_threads"))
+            s += fmt("Calibration runs' scatter about their setup's level, %d thread(s): %.1f %% "
+                     "(standard deviation of ln(time), %d runs, %d degrees of freedom): a "
+                     "prediction's band is +-%g of it\n",
+                     e.at("threads").get<int>(), 100 * d(e.at("log_sd")), e.at("runs").get<int>(),
+                     e.at("dof").get<int>(), wall_band_sds);
     if (m.contains("jitter")) {
         const auto &j = m.at("jitter");
         s += fmt("Step-to-step jitter of a rank's compute (all-busy runs within the cores): "
@@ -378,14 +417,19 @@ std::string prediction_table(const json &p) {
         d(q.at("scale")), d(q.at("delta")), q.at("steps").get<long long>(),
         q.at("threads").get<int>(), d(p.at("fluid_particles")),
         q.value("nodes", 1) > 1 ? fmt(", ranks over %d nodes", q.value("nodes", 1)).c_str() : "");
-    s += fmt("  %-8s %5s %10s %8s %7s %11s %9s %9s %9s %s\n", "slabs", "ranks", "wall_s", "speedup",
-             "eff", "compute_s", "comm_s", "wait_s", "idle_s", "all busy from step");
+    s += fmt("  %-8s %5s %10s %17s %8s %7s %11s %9s %9s %9s %s\n", "slabs", "ranks", "wall_s",
+             fmt("band_s (+-%g sd)", wall_band_sds).c_str(), "speedup", "eff", "compute_s",
+             "comm_s", "wait_s", "idle_s", "all busy from step");
     for (const auto &c : p.at("configurations")) {
         const auto &t = c.at("totals");
-        s += fmt("  %-8s %5d %10.3f %8.2f %7.2f %11.3f %9.4f %9.3f %9.3f %s%s\n",
+        const json band = c.value("wall_band", json(nullptr));
+        const std::string band_s =
+            band.is_null() ? std::string("-")
+                           : fmt("%.3f-%.3f", d(band.at("low_s")), d(band.at("high_s")));
+        s += fmt("  %-8s %5d %10.3f %17s %8.2f %7.2f %11.3f %9.4f %9.3f %9.3f %s%s\n",
                  c.value("decomposition", std::string("equal")).c_str(), c.at("ranks").get<int>(),
-                 d(c.at("wall_s")), d(c.at("speedup")), d(c.at("efficiency")), d(t.at("compute_s")),
-                 d(t.at("comm_s")), d(t.at("wait_s")), d(t.at("idle_s")),
+                 d(c.at("wall_s")), band_s.c_str(), d(c.at("speedup")), d(c.at("efficiency")),
+                 d(t.at("compute_s")), d(t.at("comm_s")), d(t.at("wait_s")), d(t.at("idle_s")),
                  c.at("first_step_all_ranks_busy").is_null()
                      ? "never"
                      : std::to_string(c.at("first_step_all_ranks_busy").get<long long>()).c_str(),
@@ -426,6 +470,12 @@ std::string validation_table(const json &v) {
                  100 * d(sm.at("wall_abs_error").at("median")),
                  100 * d(sm.at("wall_abs_error").at("max")),
                  sm.at("wall_abs_error").at("count").get<std::size_t>());
+    if (sm.contains("wall_band") && !sm.at("wall_band").is_null())
+        s += fmt("  measured within the prediction's band (+-%g sd of the calibration runs' "
+                 "scatter): %lld of %zu, median |z| %.2f\n",
+                 d(sm.at("wall_band").at("sds")), sm.at("wall_band").at("within").get<long long>(),
+                 sm.at("wall_band").at("count").get<std::size_t>(),
+                 d(sm.at("wall_band").at("median_abs_z")));
     if (!sm.at("inline_comm_abs_error_per_interval").is_null())
         s += fmt("  communication, inline prediction, |error| per interval: median %.1f%%\n",
                  100 * d(sm.at("inline_comm_abs_error_per_interval").at("median")));

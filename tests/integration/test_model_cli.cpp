@@ -149,6 +149,19 @@ TEST(ModelCli, CalibratePredictValidate) {
         EXPECT_EQ(c["runs"].get<int>(), 2) << c["grid"];
         EXPECT_TRUE(c.contains(nlohmann::json::json_pointer("/run_level/per_setup/dambreak")));
     }
+    // The calibration runs' scatter about their setup's level, pooled per thread count (session
+    // 44): two dam breaks, one degree of freedom, so |ln(f1 / f2)| / sqrt(2).
+    ASSERT_EQ(m["compute"].size(), 1u);
+    ASSERT_EQ(m["level_scatter"]["per_threads"].size(), 1u);
+    const auto &scatter = m["level_scatter"]["per_threads"][0];
+    const auto &factors = m["compute"][0]["run_level"]["runs"];
+    ASSERT_EQ(factors.size(), 2u);
+    EXPECT_EQ(scatter["threads"], 1);
+    EXPECT_EQ(scatter["dof"], 1);
+    const double log_sd = std::abs(std::log(factors[0]["factor"].get<double>() /
+                                            factors[1]["factor"].get<double>())) /
+                          std::sqrt(2.0);
+    EXPECT_NEAR(scatter["log_sd"].get<double>(), log_sd, 1e-12);
     ASSERT_EQ(m["time_sharing"].size(), 1u);
     EXPECT_DOUBLE_EQ(m["time_sharing"][0]["load"].get<double>(), 1.5);
     ASSERT_EQ(m["time_sharing"][0]["runs"].size(), 1u);
@@ -182,6 +195,12 @@ TEST(ModelCli, CalibratePredictValidate) {
     for (const auto &c : p["configurations"]) {
         EXPECT_GT(c["wall_s"].get<double>(), 0);
         EXPECT_EQ(c["intervals"].size(), 6u);
+        // Every prediction carries the band of +-2 of that scatter.
+        const double wall = c["wall_s"].get<double>();
+        EXPECT_NEAR(c["wall_band"]["low_s"].get<double>(), wall * std::exp(-2 * log_sd),
+                    1e-9 * wall);
+        EXPECT_NEAR(c["wall_band"]["high_s"].get<double>(), wall * std::exp(2 * log_sd),
+                    1e-9 * wall);
         EXPECT_EQ(c["placement_pus"].get<std::vector<int>>(),
                   sphperf::model::launcher_placement(c["ranks"].get<int>(), 1,
                                                      p["request"]["cores"].get<int>()));
@@ -726,8 +745,9 @@ TEST(ModelCli, LatencyProbeRunsWithinTheCoresOnly) {
                 EXPECT_GT(c[2], 0);
                 cpu.push_back(c);
                 EXPECT_GT(rk["comm_predict_exchange_s"].get<double>(), 0);
-                if (ranks == 2)
+                if (ranks == 2) {
                     EXPECT_EQ(rk["comm_predict_s"], rk["comm_predict_exchange_s"]);
+                }
             }
             if (ranks == 2 || !shared)
                 continue;

@@ -290,6 +290,29 @@ TEST(Fit, FastestRepeatLevelIgnoresSlowSpellsOnRepeats) {
     EXPECT_THROW(fastest_repeat_level({}), std::invalid_argument);
 }
 
+// Session 44's band: the scatter of calibration runs about their setup's own level, pooled.
+// Planted: a dam break at ln-levels 0.1 +- 0.05 and a still tank at -0.2 +- 0.02 (its lower
+// level is the setup's, not scatter), a single run adds no degree of freedom.
+TEST(Fit, LevelScatterPoolsEachSetupsDeviations) {
+    const std::map<std::string, std::vector<double>> by_setup = {
+        {"dambreak", {std::exp(0.15), std::exp(0.05)}},
+        {"still", {std::exp(-0.22), std::exp(-0.2), std::exp(-0.18)}},
+        {"column", {1.7}}};
+    const LevelScatter s = level_scatter(by_setup);
+    EXPECT_EQ(s.runs, 6);
+    EXPECT_EQ(s.dof, 1 + 2 + 0);
+    EXPECT_NEAR(s.sum_sq, 2 * 0.05 * 0.05 + 2 * 0.02 * 0.02, 1e-12);
+    EXPECT_NEAR(s.log_sd(), std::sqrt((2 * 0.05 * 0.05 + 2 * 0.02 * 0.02) / 3), 1e-12);
+    // Pooling two fits adds sums of squares and degrees of freedom, not standard deviations.
+    LevelScatter both = s;
+    both += level_scatter({{"dambreak", {1.0, std::exp(0.3)}}});
+    EXPECT_EQ(both.dof, 4);
+    EXPECT_NEAR(both.log_sd(), std::sqrt((s.sum_sq + 2 * 0.15 * 0.15) / 4), 1e-12);
+    // One run per setup: no degree of freedom, no figure.
+    EXPECT_EQ(level_scatter({{"dambreak", {1.1}}, {"still", {0.9}}}).log_sd(), 0.0);
+    EXPECT_THROW(level_scatter({{"dambreak", {1.0, -1.0}}}), std::invalid_argument);
+}
+
 TEST(Workload, RecutFollowsTheAppsSlabsAndEdgeColumns) {
     // 7 columns on 3 ranks: the app's first_column gives [0,2) [2,4) [4,7).
     const std::vector<double> fluid{1, 2, 3, 4, 5, 6, 7}, walls{10, 1, 1, 1, 1, 1, 10};
@@ -933,6 +956,38 @@ TEST(Validate, FlagsAPlantedTwentyPercentError) {
     other.config.ranks = 5;
     v = validate({}, {prediction(1.2)}, {other}, loose, exceeded);
     EXPECT_EQ(v["unmatched_runs"].size(), 1u);
+}
+
+// A prediction's band (+-2 sd of ln(time)): with a 5 % scatter, a run 20 % faster than
+// predicted lies outside it (z = ln(1/1.2)/0.05 = -3.65), one 5 % slower inside (z = 0.98); a
+// prediction without a band is not counted.
+TEST(Validate, ChecksTheMeasuredRunAgainstThePredictionsBand) {
+    auto banded = [](double wall_s, double sd) {
+        auto p = prediction(wall_s);
+        p["configurations"][0]["wall_band"] = {{"log_sd", sd},
+                                               {"dof", 10},
+                                               {"sds", 2},
+                                               {"low_s", wall_s * std::exp(-2 * sd)},
+                                               {"high_s", wall_s * std::exp(2 * sd)}};
+        return p;
+    };
+    auto twice = measured_run(1.05);
+    twice.config.ranks = 2;
+    auto p2 = banded(1.0, 0.05);
+    p2["configurations"][0]["ranks"] = 2;
+    bool exceeded = false;
+    const auto v = validate({}, {banded(1.2, 0.05), p2}, {measured_run(1.0), twice}, {}, exceeded);
+    const auto &c = v["configurations"];
+    ASSERT_EQ(c.size(), 2u);
+    EXPECT_NEAR(c[0]["wall_band"]["z"].get<double>(), std::log(1.0 / 1.2) / 0.05, 1e-9);
+    EXPECT_FALSE(c[0]["wall_band"]["within"].get<bool>());
+    EXPECT_NEAR(c[1]["wall_band"]["z"].get<double>(), std::log(1.05) / 0.05, 1e-9);
+    EXPECT_TRUE(c[1]["wall_band"]["within"].get<bool>());
+    EXPECT_EQ(v["summary"]["wall_band"]["within"], 1);
+    EXPECT_EQ(v["summary"]["wall_band"]["count"], 2);
+    const auto none = validate({}, {prediction(1.2)}, {measured_run(1.0)}, {}, exceeded);
+    EXPECT_TRUE(none["configurations"][0]["wall_band"].is_null());
+    EXPECT_TRUE(none["summary"]["wall_band"].is_null());
 }
 
 // The latency probe sorts each interval's inline communication error by the machine's mode:

@@ -109,6 +109,21 @@ RunLevel run_level(const LinearFit &f, const std::vector<std::vector<double>> &X
 // cannot outvote another's.
 double fastest_repeat_level(const std::map<std::string, std::vector<double>> &by_configuration);
 
+// How far identical-looking calibration runs scatter around their setup's level: the pooled
+// sum of squares of ln(factor) about each setup's mean ln(factor), and its degrees of freedom
+// (runs less setups). The run-to-run noise of the host plus the fit's misfit between a setup's
+// scales: what one more run of the same kind may be off by, not the uncertainty of the level.
+struct LevelScatter {
+    double sum_sq = 0; // of ln(factor) about the setup's mean ln(factor)
+    int dof = 0;       // runs less setups
+    int runs = 0;
+    LevelScatter &operator+=(const LevelScatter &o);
+    // The pooled standard deviation of ln(factor); 0 without a degree of freedom.
+    double log_sd() const;
+};
+// Factors (measured / fitted, positive) by setup.
+LevelScatter level_scatter(const std::map<std::string, std::vector<double>> &factors_by_setup);
+
 // The fit scaled by a factor: coefficients, standard errors and covariance (so a level applied
 // after the fit keeps its relative uncertainty).
 LinearFit scaled(LinearFit f, double factor);

@@ -114,6 +114,10 @@ struct ColumnWeights {
 ColumnWeights balance_weights(const nlohmann::json &model, const std::string &setup,
                               const std::string &grid, int threads);
 
+// A prediction's band: this many standard deviations of ln(time) of the calibration runs about
+// their setup's level either side (predict: wall_band; validate: within it or not).
+inline constexpr double wall_band_sds = 2;
+
 struct PredictRequest {
     std::string setup = "dambreak", grid = "table";
     double scale = 1, delta = 0.01, dt = 1e-4;
