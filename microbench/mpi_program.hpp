@@ -1,7 +1,7 @@
 #pragma once
 // What every MPI benchmark's main needs: only rank 0 speaks and writes, a bad output path fails
 // on every rank with the same exit code before any work, and MPI is finalised on every path.
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/report.hpp"
 
 #include <mpi.h>

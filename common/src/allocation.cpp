@@ -1,6 +1,6 @@
 #include "sphperf/allocation.hpp"
 
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/report.hpp"
 
 #include <algorithm>

@@ -1,7 +1,7 @@
 #include "sphperf/report.hpp"
 
 #include "sphperf/build_info.hpp"
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/topology.hpp"
 
 #include <unistd.h>

@@ -1,6 +1,6 @@
 #include "sphperf/topology.hpp"
 
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 
 #include <hwloc.h>
 #include <unistd.h>

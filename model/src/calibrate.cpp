@@ -1,6 +1,6 @@
 // sphmodel calibrate: the thesis regressions, the compute-cost fit with terms chosen by
 // cross-validation, the roofline placement, the communication links and the workload traces.
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/model/jitter.hpp"
 #include "sphperf/model/memory.hpp"
 #include "sphperf/model/placement.hpp"

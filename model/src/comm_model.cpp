@@ -1,6 +1,6 @@
 #include "sphperf/model/comm_model.hpp"
 
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/model/interpolate.hpp"
 
 #include <algorithm>

@@ -1,6 +1,6 @@
 #include "sphperf/model/fit.hpp"
 
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/stats.hpp"
 
 #include <gsl/gsl_errno.h>

@@ -1,7 +1,7 @@
 // sphmodel predict: workload per rank from the re-cut trace, work from the regressions, cost
 // from the fitted compute model and the Hockney links, then the blocking exchange's wait, the
 // idle ranks, and time-sharing when ranks x threads exceed the cores.
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/model/interpolate.hpp"
 #include "sphperf/model/jitter.hpp"
 #include "sphperf/model/placement.hpp"

@@ -1,6 +1,6 @@
 #include "sphperf/model/sph_run.hpp"
 
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/model/profile.hpp"
 
 #include <nlohmann/json.hpp>

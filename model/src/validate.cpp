@@ -1,6 +1,6 @@
 // sphmodel validate: predicted against measured, per configuration and per phase, and the
 // communication error per interval over time (thesis Fig. 4.11), for the model and inline.
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/model/runtime.hpp"
 #include "sphperf/stats.hpp"
 
@@ -448,12 +448,14 @@ std::string validation_table(const json &v) {
                                     ? fmt("%+7.1f%%", 100 * d(r.at("peak_rss_bytes").at("error")))
                                     : std::string("       -");
         // The grid, and the slabs when they are not the thesis' equal ones.
-        const std::string grid = r.at("grid").get<std::string>() +
-                                 (r.value("decomposition", std::string("equal")) == "equal"
-                                      ? ""
-                                      : " " + r.at("decomposition").get<std::string>()) +
-                                 (r.value("overlap", false) ? " overlap" : "") +
-                                 (r.value("nodes", 1) > 1 ? fmt(" %dN", r.value("nodes", 1)) : "");
+        // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) on the chained operator+.
+        std::string grid = r.at("grid").get<std::string>();
+        if (const auto dec = r.value("decomposition", std::string("equal")); dec != "equal")
+            grid += " " + dec;
+        if (r.value("overlap", false))
+            grid += " overlap";
+        if (r.value("nodes", 1) > 1)
+            grid += fmt(" %dN", r.value("nodes", 1));
         s += fmt("  %-8s %-14s %5g %5d %3d %6lld %9.2fs %9.2fs %+7.1f%% %+7.1f%% %+7.1f%% %+7.1f%% "
                  "%+7.1f%% %s\n",
                  r.at("setup").get<std::string>().c_str(), grid.c_str(), d(r.at("scale")),

@@ -1,6 +1,6 @@
 #include "sphperf/model/workload.hpp"
 
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/sph/config.hpp"
 #include "sphperf/sph/domain.hpp"
 #include "sphperf/sph/setup.hpp"

@@ -3,7 +3,7 @@
 #include "sphperf/sph/balance.hpp"
 
 #include "sphperf/build_info.hpp"
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 
 #include <nlohmann/json.hpp>
 

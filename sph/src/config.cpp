@@ -1,6 +1,6 @@
 #include "sphperf/sph/config.hpp"
 
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 
 #include <cmath>
 #include <sstream>

@@ -2,7 +2,7 @@
 // The contract every reader is fuzzed against: any bytes either parse or throw UsageError (the
 // apps turn it into exit 2 with one line). Any other exception escapes the harness and libFuzzer
 // reports it as a crash, as it does every AddressSanitizer or UBSan report.
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 
 #include <cstdint>
 #include <filesystem>

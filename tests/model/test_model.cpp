@@ -1,6 +1,6 @@
 // The runtime model's pure parts: fits against planted coefficients, the slab re-cut, Froude
 // rescaling, Hockney piece selection, and validation flagging a planted error.
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/model/jitter.hpp"
 #include "sphperf/model/placement.hpp"
 #include "sphperf/model/runtime.hpp"

@@ -1,4 +1,4 @@
-#include "sphperf/cli.hpp"
+#include "sphperf/errors.hpp"
 #include "sphperf/model/profile.hpp"
 #include "sphperf/report.hpp"
 #include "sphperf/topology.hpp"

@@ -1,6 +1,9 @@
 #pragma once
 // Uniform command-line behaviour for every executable: --help exits 0, a bad argument prints
-// one line naming the value and what was expected and exits 2, anything else exits 1.
+// one line naming the value and what was expected and exits 2, anything else exits 1
+// (errors.hpp). Only the executables' option parsing includes it.
+#include "sphperf/errors.hpp"
+
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -10,20 +13,6 @@
 #include <string_view>
 
 namespace sphperf {
-
-inline constexpr int exit_usage = 2;
-inline constexpr int exit_failure = 1;
-
-// Bad input from the user: reported as one line, exit code 2.
-class UsageError : public std::runtime_error {
-public:
-    using std::runtime_error::runtime_error;
-};
-
-// Thrown to leave main early with a given code after the message was already printed.
-struct ExitRequest {
-    int code;
-};
 
 // Parses argv; on --help prints and requests exit 0, on a parse error throws UsageError.
 inline void parse_cli(CLI::App &app, int argc, char **argv) {
@@ -76,20 +65,5 @@ inline CLI::Validator finite_above(double bound, bool or_equal) {
 }
 inline const CLI::Validator FinitePositive = finite_above(0.0, false);
 inline const CLI::Validator FiniteNonNegative = finite_above(0.0, true);
-
-// Runs a program body and maps exceptions to exit codes with a one-line message on stderr.
-template <class Body> int guarded_main(std::string_view program, Body &&body) {
-    try {
-        return body();
-    } catch (const ExitRequest &e) {
-        return e.code;
-    } catch (const UsageError &e) {
-        std::cerr << program << ": error: " << e.what() << '\n';
-        return exit_usage;
-    } catch (const std::exception &e) {
-        std::cerr << program << ": fatal: " << e.what() << '\n';
-        return exit_failure;
-    }
-}
 
 } // namespace sphperf
