@@ -33,6 +33,7 @@ struct Config {
     std::vector<std::int64_t> sizes;
     std::vector<int> threads;
     int reps = 10;
+    double max_seconds = 0; // per size and thread count; 0: no budget
     int probe_reps = 5;
     bool no_probe = false;
     std::optional<std::filesystem::path> json;
@@ -43,6 +44,7 @@ struct GemmResult {
     std::size_t n;
     int threads;
     int blas_threads;
+    int timed_runs;
     Summary seconds;
     gemm::SpotCheck check;
 };
@@ -51,7 +53,8 @@ double matrix_bytes(std::int64_t n) {
     return 3.0 * 8.0 * static_cast<double>(n) * static_cast<double>(n);
 }
 
-GemmResult run_gemm(std::size_t n, int threads, int reps) {
+// `reps` timed runs after a warm-up, or fewer (at least 2) once they have taken `max_seconds`.
+GemmResult run_gemm(std::size_t n, int threads, int reps, double max_seconds) {
     openblas_set_num_threads(threads);
     std::vector<double> a(n * n), b(n * n), c(n * n, 0.0);
     std::mt19937_64 rng(42);
@@ -68,12 +71,20 @@ GemmResult run_gemm(std::size_t n, int threads, int reps) {
     };
     call(); // warm-up: thread pool start, page faults
     std::vector<double> t;
+    double spent = 0;
     for (int r = 0; r < reps; ++r) {
+        if (max_seconds > 0 && r >= 2 && spent >= max_seconds)
+            break;
         const double t0 = wall_seconds();
         call();
         t.push_back(wall_seconds() - t0);
+        spent += t.back();
     }
-    return {n, threads, openblas_get_num_threads(), summarize(t),
+    return {n,
+            threads,
+            openblas_get_num_threads(),
+            static_cast<int>(t.size()),
+            summarize(t),
             gemm::spot_check(a, b, c, n, n, n, spot_samples, 7)};
 }
 
@@ -167,6 +178,10 @@ Config parse(int argc, char **argv, const Topology &topo) {
     app.add_option("--threads", cfg.threads, "BLAS thread counts (default 1 and all cores)")
         ->delimiter(',');
     app.add_option("--reps", cfg.reps, "Timed runs per size (after one warm-up)");
+    app.add_option("--max-seconds", cfg.max_seconds,
+                   "Per size and thread count, stop timing once the runs took this long (at "
+                   "least 2 runs; 0: always --reps)")
+        ->check(FiniteNonNegative);
     app.add_option("--probe-reps", cfg.probe_reps, "Runs of the peak probe (best is kept)");
     app.add_flag("--no-probe", cfg.no_probe, "Skip the FMA peak probe");
     app.add_option("--json", cfg.json, "Write the JSON report to this file");
@@ -228,7 +243,7 @@ int run(int argc, char **argv) {
     const std::size_t total = cfg.sizes.size() * cfg.threads.size();
     for (int t : cfg.threads)
         for (auto n : cfg.sizes) {
-            results.push_back(run_gemm(static_cast<std::size_t>(n), t, cfg.reps));
+            results.push_back(run_gemm(static_cast<std::size_t>(n), t, cfg.reps, cfg.max_seconds));
             if (!cfg.quiet)
                 std::fprintf(stderr, "dgemm: %zu/%zu done (n=%lld threads=%d)\n", results.size(),
                              total, static_cast<long long>(n), t);
@@ -240,6 +255,7 @@ int run(int argc, char **argv) {
     report["openblas_coretype_env"] =
         env_coretype ? nlohmann::json(env_coretype) : nlohmann::json();
     report["repetitions_timed"] = cfg.reps;
+    report["max_seconds_per_size"] = cfg.max_seconds;
     const auto advice = better_coretype(corename);
     report["suggested_coretype"] = advice ? nlohmann::json(*advice) : nlohmann::json();
     if (advice)
@@ -262,6 +278,7 @@ int run(int argc, char **argv) {
         nlohmann::json j{{"n", r.n},
                          {"threads", r.threads},
                          {"blas_threads", r.blas_threads},
+                         {"timed_runs", r.timed_runs},
                          {"flops_per_call", flops},
                          {"gflops", flops / r.seconds.min * 1e-9},
                          {"avg_gflops", flops / r.seconds.avg * 1e-9},
@@ -280,18 +297,21 @@ int run(int argc, char **argv) {
     }
     report["best_gflops"] = best;
 
-    std::printf("DGEMM: OpenBLAS core type %s%s, %d timed runs per size\n", corename.c_str(),
-                env_coretype ? " (set by OPENBLAS_CORETYPE)" : "", cfg.reps);
+    char budget[64] = "";
+    if (cfg.max_seconds > 0)
+        std::snprintf(budget, sizeof budget, ", fewer (at least 2) past %g s", cfg.max_seconds);
+    std::printf("DGEMM: OpenBLAS core type %s%s, %d timed runs per size%s\n", corename.c_str(),
+                env_coretype ? " (set by OPENBLAS_CORETYPE)" : "", cfg.reps, budget);
     if (!cfg.no_probe)
         std::printf("peak probe (%s, %d-bit FMA x %d chains): %.1f GFLOP/s per core, %.1f GFLOP/s "
                     "on %d cores\n",
                     std::string(probe::isa).c_str(), probe::vector_bits, probe::chains,
                     probe.per_core_gflops, probe.all_cores_gflops, probe.threads);
-    std::printf("%6s %7s %10s %10s %10s %9s %6s\n", "n", "threads", "best GF/s", "avg GF/s",
-                "min s", "of peak", "check");
+    std::printf("%6s %7s %5s %10s %10s %10s %9s %6s\n", "n", "threads", "runs", "best GF/s",
+                "avg GF/s", "min s", "of peak", "check");
     for (const auto &j : report["results"])
-        std::printf("%6zu %7d %10.2f %10.2f %10.4f %8.1f%% %6s\n", j["n"].get<std::size_t>(),
-                    j["threads"].get<int>(), j["gflops"].get<double>(),
+        std::printf("%6zu %7d %5d %10.2f %10.2f %10.4f %8.1f%% %6s\n", j["n"].get<std::size_t>(),
+                    j["threads"].get<int>(), j["timed_runs"].get<int>(), j["gflops"].get<double>(),
                     j["avg_gflops"].get<double>(), j["min_s"].get<double>(),
                     j.contains("fraction_of_peak") ? 100 * j["fraction_of_peak"].get<double>()
                                                    : 0.0,

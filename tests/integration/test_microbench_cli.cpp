@@ -141,7 +141,23 @@ TEST(DgemmCli, TinyRunWritesACompleteReport) {
                     "/peak_probe/per_core_gflops", "/peak_probe/all_cores_gflops"});
     EXPECT_EQ(j["results"].size(), 2u);
     EXPECT_TRUE(j["results"][1]["check"]["ok"].get<bool>());
+    EXPECT_EQ(j["results"][0]["timed_runs"], 2);
     expect_figures_sane(j);
+}
+
+// A time budget per size: with a budget no run can meet (1 ns), every size stops after the
+// 2 runs it always times, whatever --reps asks; without one, all --reps are timed.
+TEST(DgemmCli, TimeBudgetStopsAfterTwoRuns) {
+    const auto dir = scratch("dgemm_budget");
+    for (const std::string budget : {"1e-9", "0"}) {
+        const auto out = dir / ("d" + budget + ".json");
+        const auto r = run(bin("dgemm") + " --sizes 64 --reps 6 --no-probe --quiet --threads 1" +
+                           " --max-seconds " + budget + " --json " + out.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto j = load(out);
+        EXPECT_EQ(j["results"][0]["timed_runs"], budget == "0" ? 6 : 2) << budget;
+        EXPECT_EQ(j["repetitions_timed"], 6);
+    }
 }
 
 TEST(PingpongCli, TwoAndThreeRanks) {
@@ -329,6 +345,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"stream_unknown_option", bin("stream") + " --sise 1000 --json @OUT@", "sise"},
         BadInput{"dgemm_negative_size", bin("dgemm") + " --sizes -3 --json @OUT@", "-3"},
         BadInput{"dgemm_huge", bin("dgemm") + " --sizes 10000000 --json @OUT@", "10000000"},
+        BadInput{"dgemm_negative_budget", bin("dgemm") + " --max-seconds -1 --json @OUT@", "-1"},
         BadInput{"dgemm_unwritable", bin("dgemm") + " --sizes 8 --json /nonexistent/dir/d.json",
                  "/nonexistent/dir/d.json"},
         BadInput{"pingpong_one_rank", bin("pingpong") + " --json @OUT@", "at least 2 MPI ranks"},
