@@ -314,7 +314,7 @@ def markdown(model, validation, args, out):
     if args.calibration_s and args.validation_s:
         lines.append(f"Calibration took {args.calibration_s:.0f} s of wall time, the validation runs it "
                      f"predicts {args.validation_s:.0f} s: {100 * args.calibration_s / args.validation_s:.0f} %.")
-        readers = [d for d in ("more-runs", "two-thread-scales")
+        readers = [d for d in ("two-thread-scales",)
                    if os.path.exists(os.path.join(args.dir, d, "validation.json"))]
         if args.comparison_s and readers:
             lines.append(f"The job also ran {args.comparison_s:.0f} s of calibration runs that only the "
@@ -479,19 +479,21 @@ def markdown(model, validation, args, out):
              "runs: {o} (pooled-level/validation.json)."),
             (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
              "two-rounds",
-             "Calibrated on the runs of round a and Cell+Sorted's of rounds b and c (a median "
-             "run's level per setup then), chosen in session 42 after replaying the 21 stored main jobs of "
+             "Cell+Sorted calibrated on rounds a, b and c (a median run's level per setup then), "
+             "chosen in session 42 after replaying the 21 stored main jobs of "
              "sessions 37-42 (max within 10 % in 12 jobs against 10, mean max 11.6 % against 12.6 %, "
              "configurations beyond 10 %: 22 against 29): **tuned**. With rounds a and b only "
-             "(sessions 38-41's calibration) on the same validation runs: {o} "
-             "(two-rounds/validation.json)."),
-            (not any("_list_b" in r["path"] or "_table_b" in r["path"]
-                     for r in model["calibration_runs"]),
-             "more-runs",
-             "Cell+List and Cell+Table calibrated on round a only, chosen in session 38 after "
-             "replaying sessions 34-37's 18 main jobs: **tuned**. With round b's Cell+List and "
-             "Cell+Table runs as well (session 37's calibration) on the same validation "
-             "runs: {o} (more-runs/validation.json)."),
+             "(sessions 38-41's calibration, Cell+List and Cell+Table on round a) on the same "
+             "validation runs: {o} (two-rounds/validation.json)."),
+            (any("_list_b" in r["path"] or "_table_b" in r["path"]
+                 for r in model["calibration_runs"]),
+             "round-a-list-table",
+             "Cell+List and Cell+Table calibrated on rounds a and b, chosen in session 44 after "
+             "its three main jobs on the VM's noisier Intel host (median / max 10.7 / 23.8, 7.9 / "
+             "22.1, 6.5 / 19.5 % against 13.7 / 29.4, 9.3 / 42.4, 8.3 / 23.7 % with round a only; "
+             "on the AMD host's 23 stored jobs 3.30 / 11.3 against 3.47 / 11.7 %): **tuned**. With "
+             "round a only (sessions 38-43's calibration) on the same validation runs: {o} "
+             "(round-a-list-table/validation.json)."),
             (not any("_s0.35_sorted_t2_" in r["path"] for r in model["calibration_runs"]),
              "two-thread-scales",
              "Cell+Sorted at 2 threads calibrated on its dam break at scale 0.7 and still tank at "
