@@ -49,8 +49,11 @@ def roofline(model, out):
     ax.set_xlabel("operational intensity (flop/byte)")
     ax.set_ylabel("GFLOP/s")
     ax.set_title("Roofline: ceilings of this node and the SPH kernel (calibration runs)")
-    # Outside the axes: one entry per calibration run (18 in the main job) would hide the ceilings.
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    # Outside the axes: one entry per calibration run (28 in the main job) would hide the ceilings;
+    # in two columns past 20 entries, so that none runs off the figure.
+    entries = len(ax.get_legend_handles_labels()[0])
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              ncol=2 if entries > 20 else 1)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)
