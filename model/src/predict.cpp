@@ -448,6 +448,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
     }
     return out;
 }
+
 // The band a prediction of `wall` seconds carries: +-wall_band_sds standard deviations of ln(time)
 // of the calibration runs about their setup's level at this thread count (calibrate:
 // level_scatter), null for a model without it or without a degree of freedom. It says how far one
