@@ -392,7 +392,7 @@ if [ "$short_repeats" -gt 1 ]; then
     val_reports=("$runs"/val_*.json)
 fi
 if [ "$more_runs" -eq 1 ]; then
-    # Sessions 42-43's calibration: Cell+List's and Cell+Table's round a only.
+    # Sessions 38-43's calibration: Cell+List's and Cell+Table's round a only.
     mapfile -t cal_reports < <(model_runs | grep -v -E '_(list|table)_b\.json$')
     model_and_validate "$out/round-a-list-table" levelled-one-se froude >/dev/null
     # Sessions 38-41's calibration: rounds a and b only, no round c, list and table round a.
