@@ -21,7 +21,7 @@ struct Options {
     std::string term_selection = "levelled-one-se";
     std::string time_profile = "froude";
     std::string fit_weights = "relative";
-    std::string run_level = "fastest-repeat";
+    std::string run_level = "pooled";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -67,11 +67,11 @@ int run(int argc, char **argv) {
         ->capture_default_str()
         ->check(CLI::IsMember({"absolute", "relative"}));
     cal->add_option("--run-level", o.run_level,
-                    "A setup's cost level from its calibration runs: fastest-repeat (the fastest "
-                    "run of each repeated configuration, the median over configurations; the "
-                    "time profile carries the shape only), median (the median run, the same "
-                    "profile) or pooled (the pooled level of all runs, through the profile: "
-                    "sessions 16-42)")
+                    "A setup's cost level from its calibration runs: pooled (the pooled level "
+                    "of all runs, through the time profile: a mean, which is what a sum of "
+                    "step times pays), fastest-repeat (the fastest run of each repeated "
+                    "configuration, the median over configurations; the profile carries the "
+                    "shape only: sessions 43-44) or median (the median run, the same profile)")
         ->capture_default_str()
         ->check(CLI::IsMember({"fastest-repeat", "median", "pooled"}));
 
@@ -178,9 +178,9 @@ int run(int argc, char **argv) {
                        : o.time_profile == "froude-windowed" ? TimeProfile::froude_windowed
                                                              : TimeProfile::froude,
                        o.fit_weights == "relative" ? FitWeights::relative : FitWeights::absolute,
-                       o.run_level == "pooled"   ? RunLevelRule::pooled
-                       : o.run_level == "median" ? RunLevelRule::median
-                                                 : RunLevelRule::fastest_repeat});
+                       o.run_level == "fastest-repeat" ? RunLevelRule::fastest_repeat
+                       : o.run_level == "median"       ? RunLevelRule::median
+                                                       : RunLevelRule::pooled});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -405,12 +405,13 @@ TEST(ModelCli, CostTermsAreFittedOverTheFlowEveryRunCovers) {
 }
 
 // Session 43's level rule: a second run of the 2-rank configuration, 20 % slower in every
-// compute timer (a slow spell of the host), as a repeat. With --run-level fastest-repeat (the
-// default) the setup's level is the median over its two configurations of each one's fastest
-// run, so the slow repeat is not in it; with pooled the median run's (the shape-only profile
+// compute timer (a slow spell of the host), as a repeat. With --run-level fastest-repeat
+// (sessions 43-44) the setup's level is the median over its two configurations of each one's
+// fastest run, so the slow repeat is not in it; with pooled (the default since session 45) the
+// median run's, which the pooled profile then carries to the runs' mean (the shape-only profile
 // is TimeProfile.ShapeOnlyProfileLeavesTheLevelToTheRepeatsRule's). Run 3 (time-shared) stays
 // out of the fit.
-TEST(ModelCli, RunLevelTakesTheFastestRepeat) {
+TEST(ModelCli, RunLevelPoolsOrTakesTheFastestRepeat) {
     const auto &f = fixture();
     auto slow = load(f.run2);
     for (auto &iv : slow["intervals"])
@@ -421,12 +422,13 @@ TEST(ModelCli, RunLevelTakesTheFastestRepeat) {
                     t = t.get<double>() * 1.2;
     const auto repeat = f.dir / "run2_slow_repeat.json";
     std::ofstream(repeat) << slow.dump();
-    for (const std::string rule : {"fastest-repeat", "pooled"}) {
-        const auto out = f.dir / ("model_level_" + rule + ".json");
+    for (const std::string option : {"", "fastest-repeat", "pooled"}) {
+        const std::string rule = option.empty() ? "pooled" : option; // the default
+        const auto out = f.dir / ("model_level_" + (option.empty() ? "default" : option) + ".json");
         const sphperf::testing::Run r =
             run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
-                " --run-level " + rule + " --runs " + f.run1.string() + " " + f.run2.string() +
-                " " + repeat.string() + " --out " + out.string());
+                (option.empty() ? "" : " --run-level " + option) + " --runs " + f.run1.string() +
+                " " + f.run2.string() + " " + repeat.string() + " --out " + out.string());
         ASSERT_EQ(r.code, 0) << r.err;
         const auto level = load(out)["compute"][0]["run_level"];
         EXPECT_EQ(level["rule"], rule);
