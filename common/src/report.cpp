@@ -34,11 +34,12 @@ std::string utc_timestamp() {
 
 namespace {
 // Open MPI's transport and tuning parameters set in the environment (scripts/mpirun.sh sets the
-// shared-memory eager limit): every communication figure depends on them. mpirun's own
-// launch bookkeeping (orte_, ess_, session paths) is left out.
+// shared-memory eager limit, and the pml on a node without RDMA devices): every communication
+// figure depends on them, the framework selections (btl, pml, coll) and their parameters
+// alike. mpirun's own launch bookkeeping (orte_, ess_, session paths) is left out.
 nlohmann::json mca_environment() {
     constexpr std::string_view prefix = "OMPI_MCA_";
-    constexpr std::array<std::string_view, 4> kept{"btl_", "pml_", "coll_", "mpi_"};
+    constexpr std::array<std::string_view, 4> kept{"btl", "pml", "coll", "mpi_"};
     nlohmann::json mca = nlohmann::json::object();
     for (char **e = environ; *e != nullptr; ++e) {
         const std::string_view entry(*e);

@@ -117,11 +117,19 @@ TEST(Profile, InterNodeReportAddsItsClass) {
 TEST(ReportHeader, RecordsTheMpiTransportSettingsOnly) {
     ASSERT_EQ(setenv("OMPI_MCA_btl_vader_eager_limit", "12345", 1), 0);
     ASSERT_EQ(setenv("OMPI_MCA_orte_launch", "1", 1), 0);
+    const char *pml = std::getenv("OMPI_MCA_pml");
+    const std::string own_pml = pml ? pml : "";
+    ASSERT_EQ(setenv("OMPI_MCA_pml", "ob1", 1), 0);
     sphperf::Topology topo;
     const json h = sphperf::report_header("test", topo);
     unsetenv("OMPI_MCA_btl_vader_eager_limit");
     unsetenv("OMPI_MCA_orte_launch");
+    if (own_pml.empty())
+        unsetenv("OMPI_MCA_pml");
+    else
+        setenv("OMPI_MCA_pml", own_pml.c_str(), 1);
     ASSERT_TRUE(h.contains("mpi_mca"));
     EXPECT_EQ(h.at("mpi_mca").value("btl_vader_eager_limit", ""), "12345");
+    EXPECT_EQ(h.at("mpi_mca").value("pml", ""), "ob1"); // a selection, not a parameter
     EXPECT_FALSE(h.at("mpi_mca").contains("orte_launch"));
 }
