@@ -474,13 +474,14 @@ def markdown(model, validation, args, out):
              "fastest-repeat",
              "Per setup, the cost level of all its calibration runs pooled through the Froude-time "
              "profile (calibrate --run-level pooled: a mean, which is what a sum of step times "
-             "pays), back in session 45 after the VM's Intel host's five main jobs, where the "
-             "fastest run of each repeated configuration (sessions 43-44) sat below the long runs "
-             "(mean signed error -3.9 and -9.0 % in the last two against +1.6 and -3.7 % pooled; "
-             "median 8.0 / 9.0 % against 6.5 / 5.8 %); on the AMD host's 23 stored jobs the "
-             "fastest repeat had been a little better (mean per-job median 3.27 against 3.47 %): "
-             "**tuned**. With each repeated configuration's fastest run on the same runs: {o} "
-             "(fastest-repeat/validation.json)."),
+             "pays), back in session 45 after four main jobs on the VM's Intel host (session 44's "
+             "last, session 45's three), where the fastest run of each repeated configuration "
+             "(sessions 43-44) sat below the long runs: mean signed error +1.9 % pooled against "
+             "-6.4 % (per job +1.6, -3.7, -0.6, +10.3 against -3.9, -9.0, -12.8, +0.1 %), mean "
+             "per-job median 8.0 against 9.2 %, mean max 26.9 against 29.5 %; on the AMD host's "
+             "23 stored jobs the fastest repeat had been a little better (mean per-job median "
+             "3.27 against 3.47 %): **tuned**. With each repeated configuration's fastest run on "
+             "the same runs: {o} (fastest-repeat/validation.json)."),
             (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
              "two-rounds",
              "Cell+Sorted calibrated on rounds a, b and c (a median run's level per setup then), "
