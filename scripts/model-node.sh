@@ -381,6 +381,15 @@ model_and_validate() {
 # weights (session 30's model), with the overhead as a ratio (session 33's), per step (sessions
 # 34-39's), without the profile (session 15's) and with neither (the untuned rule).
 model_and_validate "$out" levelled-one-se froude
+# The comparison models below only read the runs: nothing is timed any more, so they run side
+# by side, as many at once as there are cores (one after another they took 16 s of the job on
+# the VM's Intel host, session 45). Each one's arrays are copied when it starts.
+beside_pids=()
+beside() { # beside CMD...: CMD in the background, its stdout dropped, at most nproc at once
+    while [ "$(jobs -rp | wc -l)" -ge "$(nproc)" ]; do sleep 0.1; done
+    "$@" >/dev/null &
+    beside_pids+=("$!")
+}
 if [ "$short_repeats" -gt 1 ]; then
     # The same model validated with each repeated configuration's first run in place of its
     # median one (what single runs would have given).
@@ -392,40 +401,40 @@ if [ "$short_repeats" -gt 1 ]; then
         done
     }
     mapfile -t val_reports < <(first_run "$runs"/val_*.json)
-    model_and_validate "$out/first-runs" levelled-one-se froude >/dev/null
+    beside model_and_validate "$out/first-runs" levelled-one-se froude
     val_reports=("$runs"/val_*.json)
 fi
 if [ "$more_runs" -eq 1 ]; then
     # Sessions 38-43's calibration: Cell+List's and Cell+Table's round a only.
     mapfile -t cal_reports < <(model_runs | grep -v -E '_(list|table)_b\.json$')
-    model_and_validate "$out/round-a-list-table" levelled-one-se froude >/dev/null
+    beside model_and_validate "$out/round-a-list-table" levelled-one-se froude
     # Sessions 38-41's calibration: rounds a and b only, no round c, list and table round a.
     mapfile -t cal_reports < <(model_runs | grep -v -E '_c\.json$|_(list|table)_b\.json$')
-    model_and_validate "$out/two-rounds" levelled-one-se froude >/dev/null
+    beside model_and_validate "$out/two-rounds" levelled-one-se froude
     mapfile -t cal_reports < <(model_runs)
 fi
 # With the 2-thread dam breaks at scale 0.35 as well (session 31's model).
 if ls "$runs"/cal_dambreak_s0.35_sorted_t2_*.json >/dev/null 2>&1; then
     mapfile -t cal_reports < <(model_runs; ls "$runs"/cal_dambreak_s0.35_sorted_t2_*.json)
-    model_and_validate "$out/two-thread-scales" levelled-one-se froude >/dev/null
+    beside model_and_validate "$out/two-thread-scales" levelled-one-se froude
     mapfile -t cal_reports < <(model_runs)
 fi
 # Each repeated configuration's fastest run sets its setup's level (sessions 43-44) instead of
 # the level of all calibration runs pooled through the time profile.
-CAL_EXTRA="--run-level fastest-repeat" model_and_validate "$out/fastest-repeat" levelled-one-se froude \
-    >/dev/null
+CAL_EXTRA="--run-level fastest-repeat" beside model_and_validate "$out/fastest-repeat" levelled-one-se froude
 # The Froude-time profile as the moving ratio of sessions 16-41 instead of the robust quadratic.
-model_and_validate "$out/windowed-profile" levelled-one-se froude-windowed >/dev/null
-model_and_validate "$out/absolute-weights" levelled-one-se froude absolute >/dev/null
-model_and_validate "$out/ratio-overhead" levelled-one-se froude relative ratio >/dev/null
+beside model_and_validate "$out/windowed-profile" levelled-one-se froude-windowed
+beside model_and_validate "$out/absolute-weights" levelled-one-se froude absolute
+beside model_and_validate "$out/ratio-overhead" levelled-one-se froude relative ratio
 # The time-sharing overhead per step instead of the replayed step (sessions 34-39's model; the
 # replay is the model since session 40: model/NOTES.md).
-model_and_validate "$out/per-step-overhead" levelled-one-se froude relative per-step >/dev/null
+beside model_and_validate "$out/per-step-overhead" levelled-one-se froude relative per-step
 # The replay at the 4 ms tick a parked rank sees (measured; the 1.5 ms slice was preferred to it).
-model_and_validate "$out/time-shared-replay-4ms" levelled-one-se froude relative replay \
-    "--replay-slice-ms 4" >/dev/null
-model_and_validate "$out/no-profile" levelled-one-se none absolute >/dev/null
-model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute >/dev/null
+beside model_and_validate "$out/time-shared-replay-4ms" levelled-one-se froude relative replay \
+    "--replay-slice-ms 4"
+beside model_and_validate "$out/no-profile" levelled-one-se none absolute
+beside model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute
+for pid in "${beside_pids[@]}"; do wait "$pid"; done # a failed comparison fails the job
 /usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" --validation-s "$val_s" \
     --comparison-s "$cmp_s" \
     --fresh-exchange-s "$fresh_s"
