@@ -64,7 +64,12 @@ stream_args=(--reps 3)
 # against 52.5): the job stops at 2000^2 (dgemm's default keeps 4000^2).
 dgemm_args=(--reps 5 --max-seconds 10 --sizes 1000,2000)
 pingpong_args=()
-exchange_args=()
+# The halo exchange benchmarks at 0.15 s a point (exchange's default 0.3; at least 20 rounds
+# either way, so the 10 and 30 ms gaps keep their length): 41 s of the job on the Intel host
+# (session 45). The validation runs within the cores read their own fresh benchmark (0.1 s a
+# point since session 45: the mean shift cost's variation over repeats 8.5 against 6.4 % at
+# 0.2 s, model/NOTES.md); these serve the runs without one and the loads above the cores.
+exchange_args=(--seconds-per-point 0.15)
 if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
     stream_args=(--size 2000000 --reps 3)
     dgemm_args=(--sizes 300 --reps 2 --probe-reps 1)
