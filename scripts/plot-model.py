@@ -474,12 +474,12 @@ def markdown(model, validation, args, out):
              "fastest-repeat",
              "Per setup, the cost level of all its calibration runs pooled through the Froude-time "
              "profile (calibrate --run-level pooled: a mean, which is what a sum of step times "
-             "pays), back in session 45 after five main jobs on the VM's Intel host (session 44's "
-             "last, session 45's four), where the fastest run of each repeated configuration "
-             "(sessions 43-44) sat below the long runs: mean signed error +1.7 % pooled against "
-             "-6.2 % (per job +1.6, -3.7, -0.6, +10.3, +0.7 against -3.9, -9.0, -12.8, +0.1, "
-             "-5.2 %), mean per-job median 7.7 against 9.4 %, mean max 25.0 against 28.3 %; on "
-             "the AMD host's "
+             "pays), back in session 45 after seven main jobs on the VM's Intel host (session "
+             "44's last, session 45's six), where the fastest run of each repeated configuration "
+             "(sessions 43-44) sat below the long runs: mean signed error +0.6 % pooled against "
+             "-6.9 % (per job +1.6, -3.7, -0.6, +10.3, +0.7, -0.3, -4.0 against -3.9, -9.0, "
+             "-12.8, +0.1, -5.2, -10.0, -7.7 %), mean per-job median 8.1 against 9.2 %, mean max "
+             "25.0 against 28.0 %; on the AMD host's "
              "23 stored jobs the fastest repeat had been a little better (mean per-job median "
              "3.27 against 3.47 %): **tuned**. With each repeated configuration's fastest run on "
              "the same runs: {o} (fastest-repeat/validation.json)."),
