@@ -86,9 +86,13 @@ PiecewiseFit fit_piecewise(std::span<const MessageSample> samples, std::size_t m
         const LineFit lo = fit_line(samples.first(split));
         // The small piece's intercept is the latency every message pays: a split that makes it
         // negative fits noise (seen on time-shared pairs), not a Hockney model.
-        if (!(lo.alpha_s > 0))
+        if (!(lo.alpha_s > 0) || lo.beta_s_per_byte < 0)
             continue;
+        // Likewise a piece whose time falls as messages grow: a few noisy latency points can
+        // tilt a short small-message piece below zero (seen in CI on a 2-vCPU host).
         const LineFit hi = fit_line(samples.subspan(split));
+        if (hi.beta_s_per_byte < 0)
+            continue;
         const double ssr = lo.weighted_ssr + hi.weighted_ssr;
         if (ssr < best_ssr) {
             best_ssr = ssr;

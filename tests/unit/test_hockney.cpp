@@ -81,6 +81,19 @@ TEST(Hockney, NoSplitWithANegativeLatency) {
     EXPECT_GT(f.pieces.front().points, 4u);
 }
 
+// Nor is a piece whose time falls as messages grow (T = 1 us - 1 ns/B over 1-16 B, as a few noisy
+// latency medians can tilt; a 2-rank CI run's small piece once came out at -0.5 ns/B).
+TEST(Hockney, NoPieceWhoseTimeFallsWithSize) {
+    std::vector<MessageSample> s;
+    for (double m = 1; m <= 65536; m *= 2)
+        s.push_back({m, m <= 16 ? 1e-6 - 1e-9 * m : 1.2e-6 + 1e-10 * m});
+    ASSERT_LT(fit_line(std::span(s).first(5)).beta_s_per_byte, 0); // the best split, unrestricted
+    const auto f = fit_piecewise(s);
+    for (const auto &p : f.pieces)
+        EXPECT_GE(p.beta_s_per_byte, 0) << p.first_bytes << ".." << p.last_bytes << " B";
+    EXPECT_GT(f.alpha_s(), 0);
+}
+
 TEST(Hockney, RejectsDegenerateInput) {
     EXPECT_THROW(fit_line(std::vector<MessageSample>{{8, 1e-6}}), std::invalid_argument);
     EXPECT_THROW(fit_line(std::vector<MessageSample>{{8, 1e-6}, {8, 2e-6}}), std::invalid_argument);

@@ -43,8 +43,9 @@ struct PiecewiseFit {
 };
 
 // Samples sorted by size. Every split leaving >= min_points on each side whose small piece has a
-// positive latency is tried and the one with the least total squared relative residual is kept
-// when it beats the single line by more than `min_gain` (fractional reduction of the residual).
+// positive latency and whose pieces both have a slope >= 0 is tried and the one with the least
+// total squared relative residual is kept when it beats the single line by more than `min_gain`
+// (fractional reduction of the residual).
 PiecewiseFit fit_piecewise(std::span<const MessageSample> samples, std::size_t min_points = 3,
                            double min_gain = 0.5);
 
