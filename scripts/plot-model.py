@@ -423,6 +423,18 @@ def markdown(model, validation, args, out):
                          f"configurations, median |z| {band['median_abs_z']:.2f}. The band is how far one run "
                          f"on this host may land from a right prediction, not a target: where it is wider than "
                          f"the 10 % target, a miss inside it is within this host's own run-to-run noise.")
+        floor = s.get("wall_noise_floor")
+        if floor:
+            q = lambda k: (f"{100 * floor[k]['median']:.1f} % (90 % of draws "
+                           f"{100 * floor[k]['p05']:.1f}-{100 * floor[k]['p95']:.1f})")
+            lines.append(f"Noise floor: a model exact in expectation, on runs as noisy as the calibration "
+                         f"runs (each configuration's measured time drawn {floor['draws']} times as the "
+                         f"prediction x exp(sd z) with its band's sd, `wall_noise_floor`), would show a "
+                         f"median |error| of {q('median_abs_error')} and a max of {q('max_abs_error')}. "
+                         f"Where these are above the targets (5 and 10 %), no model could meet them on this "
+                         f"host's single runs; the gap between these and the figures above is what the "
+                         f"model adds (model/NOTES.md, session 46, measures the scatter apart, by run "
+                         f"length).")
         def untuned(subdir):
             """The same runs through an earlier model beside the results: its wall |error| line."""
             other = os.path.join(args.dir, subdir, "validation.json")

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <sstream>
 
 namespace sphperf::model {
@@ -46,8 +47,10 @@ const json *match(const std::vector<json> &predictions, const SphRun &m) {
 }
 
 // A measured wall time against the prediction's band (predict: wall_band, +-wall_band_sds
-// standard deviations of ln(time)); null without a band. Appends |z| to `z_abs`.
-json band_check(const json &band, double predicted, double measured, std::vector<double> &z_abs) {
+// standard deviations of ln(time)); null without a band. Appends |z| to `z_abs` and the band's
+// deviation to `sds`.
+json band_check(const json &band, double predicted, double measured, std::vector<double> &z_abs,
+                std::vector<double> &sds) {
     if (band.is_null() || !(predicted > 0) || !(measured > 0))
         return nullptr;
     const double sd = band.at("log_sd").get<double>();
@@ -55,11 +58,29 @@ json band_check(const json &band, double predicted, double measured, std::vector
         return nullptr;
     const double z = std::log(measured / predicted) / sd;
     z_abs.push_back(std::abs(z));
+    sds.push_back(sd);
     return {{"log_sd", sd},
             {"low_s", band.at("low_s")},
             {"high_s", band.at("high_s")},
             {"z", z},
             {"within", std::abs(z) <= wall_band_sds}};
+}
+
+// Linear interpolation between order statistics; `v` sorted, not empty.
+double quantile(const std::vector<double> &v, double q) {
+    const double at = q * static_cast<double>(v.size() - 1);
+    const auto i = static_cast<std::size_t>(at);
+    const double f = at - static_cast<double>(i);
+    return i + 1 < v.size() ? v[i] + f * (v[i + 1] - v[i]) : v[i];
+}
+
+Quantiles quantiles(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return {quantile(v, 0.05), quantile(v, 0.5), quantile(v, 0.95)};
+}
+
+json to_json(const Quantiles &q) {
+    return {{"p05", q.p05}, {"median", q.median}, {"p95", q.p95}};
 }
 
 json band_summary(const std::vector<double> &z_abs) {
@@ -74,11 +95,46 @@ json band_summary(const std::vector<double> &z_abs) {
 }
 } // namespace
 
+NoiseFloor wall_noise_floor(std::span<const double> log_sd, std::size_t draws) {
+    NoiseFloor f;
+    f.configurations = log_sd.size();
+    f.draws = draws;
+    if (log_sd.empty() || draws == 0)
+        return f;
+    std::mt19937_64 rng(46);
+    std::normal_distribution<double> z;
+    std::vector<double> medians(draws), maxima(draws), err(log_sd.size());
+    for (std::size_t d = 0; d < draws; ++d) {
+        // measured = predicted exp(sd z): the error validate reports, predicted / measured - 1.
+        for (std::size_t c = 0; c < log_sd.size(); ++c)
+            err[c] = std::abs(std::exp(-log_sd[c] * z(rng)) - 1.0);
+        maxima[d] = *std::max_element(err.begin(), err.end());
+        medians[d] = median(err);
+    }
+    f.median_abs_error = quantiles(std::move(medians));
+    f.max_abs_error = quantiles(std::move(maxima));
+    return f;
+}
+
+namespace {
+json noise_floor_json(const std::vector<double> &sds) {
+    if (sds.empty())
+        return nullptr;
+    const auto f = wall_noise_floor(sds);
+    return {{"configurations", f.configurations},
+            {"draws", f.draws},
+            {"log_sd_from", "each configuration's band (the calibration runs' scatter)"},
+            {"median_abs_error", to_json(f.median_abs_error)},
+            {"max_abs_error", to_json(f.max_abs_error)}};
+}
+} // namespace
+
 json validate(const json &header, const std::vector<json> &predictions,
               const std::vector<SphRun> &measured, const ValidateOptions &opt, bool &exceeded) {
     json out = header;
     json rows = json::array(), unmatched = json::array();
-    std::vector<double> band_z; // |ln(measured / predicted)| / the band's standard deviation
+    std::vector<double> band_z;  // |ln(measured / predicted)| / the band's standard deviation
+    std::vector<double> band_sd; // the band's standard deviation of ln(time), per configuration
     std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors,
         memory_errors;
     // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
@@ -235,44 +291,45 @@ json validate(const json &header, const std::vector<json> &predictions,
         wall_errors.push_back(std::abs(err));
         if (opt.max_error && std::abs(err) > *opt.max_error)
             exceeded = true;
-        json row{{"run", m.path},
-                 {"setup", m.config.setup},
-                 {"grid", m.config.grid},
-                 {"scale", m.config.scale},
-                 {"delta", m.config.delta},
-                 {"ranks", P},
-                 {"threads", m.config.threads},
-                 {"nodes", m.config.nodes},
-                 {"decomposition", m.config.decomposition},
-                 {"overlap", m.config.overlap},
-                 {"steps", m.config.steps},
-                 {"measured_rebalance_s", m.config.rebalance_s},
-                 {"predicted_rebalance_s", p->value("rebalance_s", 0.0)},
-                 {"oversubscribed", p->at("oversubscribed")},
-                 {"measured_wall_s", m.wall_s},
-                 {"predicted_wall_s", p->at("wall_s")},
-                 {"wall_error", err},
-                 {"wall_band", band_check(p->value("wall_band", json(nullptr)),
-                                          p->at("wall_s").get<double>(), m.wall_s, band_z)},
-                 {"first_step_all_ranks_busy", onset},
-                 {"phases",
-                  {{"compute", phase("compute_s", compute)},
-                   {"comm", comm_phase},
-                   {"wait", phase("wait_s", wait)},
-                   {"idle", phase("idle_s", idle)}}},
-                 {"pairs_per_step",
-                  {{"counted", pairs / steps},
-                   {"predicted", p_pairs},
-                   {"error", rel(p_pairs, pairs / steps)},
-                   {"predicted_regression", p_pairs_reg},
-                   {"error_regression", rel(p_pairs_reg, pairs / steps)}}},
-                 {"exported_per_step",
-                  {{"counted", exported / steps},
-                   {"predicted_edge_columns", p_exp},
-                   {"error_edge_columns", rel(p_exp, exported / steps)},
-                   {"predicted_regression", p_exp_reg},
-                   {"error_regression", rel(p_exp_reg, exported / steps)}}},
-                 {"comm_series", series}};
+        json row{
+            {"run", m.path},
+            {"setup", m.config.setup},
+            {"grid", m.config.grid},
+            {"scale", m.config.scale},
+            {"delta", m.config.delta},
+            {"ranks", P},
+            {"threads", m.config.threads},
+            {"nodes", m.config.nodes},
+            {"decomposition", m.config.decomposition},
+            {"overlap", m.config.overlap},
+            {"steps", m.config.steps},
+            {"measured_rebalance_s", m.config.rebalance_s},
+            {"predicted_rebalance_s", p->value("rebalance_s", 0.0)},
+            {"oversubscribed", p->at("oversubscribed")},
+            {"measured_wall_s", m.wall_s},
+            {"predicted_wall_s", p->at("wall_s")},
+            {"wall_error", err},
+            {"wall_band", band_check(p->value("wall_band", json(nullptr)),
+                                     p->at("wall_s").get<double>(), m.wall_s, band_z, band_sd)},
+            {"first_step_all_ranks_busy", onset},
+            {"phases",
+             {{"compute", phase("compute_s", compute)},
+              {"comm", comm_phase},
+              {"wait", phase("wait_s", wait)},
+              {"idle", phase("idle_s", idle)}}},
+            {"pairs_per_step",
+             {{"counted", pairs / steps},
+              {"predicted", p_pairs},
+              {"error", rel(p_pairs, pairs / steps)},
+              {"predicted_regression", p_pairs_reg},
+              {"error_regression", rel(p_pairs_reg, pairs / steps)}}},
+            {"exported_per_step",
+             {{"counted", exported / steps},
+              {"predicted_edge_columns", p_exp},
+              {"error_edge_columns", rel(p_exp, exported / steps)},
+              {"predicted_regression", p_exp_reg},
+              {"error_regression", rel(p_exp_reg, exported / steps)}}},
+            {"comm_series", series}};
         // Peak RSS of the largest rank, against the memory model and the thesis' bound.
         if (p->contains("memory") && !p->at("memory").is_null() && !m.peak_rss_bytes.empty()) {
             const auto &pm = p->at("memory");
@@ -311,6 +368,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
         {"peak_rss_abs_error", summary(memory_errors)},
         {"wall_band", band_summary(band_z)},
+        {"wall_noise_floor", noise_floor_json(band_sd)},
         {"max_error", opt.max_error ? json(*opt.max_error) : json(nullptr)},
         {"exceeded", exceeded}};
     return out;
@@ -478,6 +536,15 @@ std::string validation_table(const json &v) {
                  d(sm.at("wall_band").at("sds")), sm.at("wall_band").at("within").get<long long>(),
                  sm.at("wall_band").at("count").get<std::size_t>(),
                  d(sm.at("wall_band").at("median_abs_z")));
+    if (sm.contains("wall_noise_floor") && !sm.at("wall_noise_floor").is_null()) {
+        const auto &f = sm.at("wall_noise_floor");
+        const auto q = [&](const char *k, const char *p) { return 100 * d(f.at(k).at(p)); };
+        s += fmt("  a model exact in expectation, on runs as noisy as the calibration runs: median "
+                 "|error| %.1f%% (90%% of draws %.1f-%.1f), max %.1f%% (%.1f-%.1f)\n",
+                 q("median_abs_error", "median"), q("median_abs_error", "p05"),
+                 q("median_abs_error", "p95"), q("max_abs_error", "median"),
+                 q("max_abs_error", "p05"), q("max_abs_error", "p95"));
+    }
     if (!sm.at("inline_comm_abs_error_per_interval").is_null())
         s += fmt("  communication, inline prediction, |error| per interval: median %.1f%%\n",
                  100 * d(sm.at("inline_comm_abs_error_per_interval").at("median")));

@@ -985,9 +985,42 @@ TEST(Validate, ChecksTheMeasuredRunAgainstThePredictionsBand) {
     EXPECT_TRUE(c[1]["wall_band"]["within"].get<bool>());
     EXPECT_EQ(v["summary"]["wall_band"]["within"], 1);
     EXPECT_EQ(v["summary"]["wall_band"]["count"], 2);
+    // The noise floor is drawn from the two bands' deviations.
+    EXPECT_EQ(v["summary"]["wall_noise_floor"]["configurations"], 2);
+    EXPECT_GT(v["summary"]["wall_noise_floor"]["max_abs_error"]["median"].get<double>(), 0);
     const auto none = validate({}, {prediction(1.2)}, {measured_run(1.0)}, {}, exceeded);
     EXPECT_TRUE(none["configurations"][0]["wall_band"].is_null());
     EXPECT_TRUE(none["summary"]["wall_band"].is_null());
+    EXPECT_TRUE(none["summary"]["wall_noise_floor"].is_null());
+}
+
+// A model exact in expectation, on runs whose ln(time) scatters by sd: one configuration's
+// |error| has the median of |exp(sd z) - 1|, about 0.674 sd for a small sd (the median of |z|);
+// the max over 19 configurations the expected max of 19 |z|, about 2.2 sd; no scatter, no error.
+TEST(Validate, NoiseFloorOfAModelExactInExpectation) {
+    const std::vector<double> one{0.01};
+    const auto f1 = wall_noise_floor(one);
+    EXPECT_EQ(f1.configurations, 1u);
+    EXPECT_NEAR(f1.median_abs_error.median, 0.6745 * 0.01, 0.03 * 0.6745 * 0.01);
+    EXPECT_DOUBLE_EQ(f1.max_abs_error.median, f1.median_abs_error.median);
+    EXPECT_LT(f1.median_abs_error.p05, 0.1 * 0.01); // |z| < 0.063 one draw in 20
+    EXPECT_NEAR(f1.median_abs_error.p95, 1.96 * 0.01, 0.05 * 1.96 * 0.01);
+
+    const std::vector<double> many(19, 0.01);
+    const auto f = wall_noise_floor(many);
+    EXPECT_GT(f.max_abs_error.median, 2.0 * 0.01);
+    EXPECT_LT(f.max_abs_error.median, 2.4 * 0.01);
+    EXPECT_LT(f.max_abs_error.p05, f.max_abs_error.median);
+    EXPECT_GT(f.max_abs_error.p95, f.max_abs_error.median);
+    // The median over 19 configurations is far less spread than one configuration's error.
+    EXPECT_NEAR(f.median_abs_error.median, 0.6745 * 0.01, 0.05 * 0.6745 * 0.01);
+    EXPECT_GT(f.median_abs_error.p05, 0.4 * 0.01);
+    EXPECT_LT(f.median_abs_error.p95, 1.0 * 0.01);
+
+    const std::vector<double> still(5, 0.0);
+    const auto f0 = wall_noise_floor(still);
+    EXPECT_EQ(f0.max_abs_error.p95, 0);
+    EXPECT_EQ(wall_noise_floor(std::vector<double>{}).configurations, 0u);
 }
 
 // The latency probe sorts each interval's inline communication error by the machine's mode:

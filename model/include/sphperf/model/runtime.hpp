@@ -149,6 +149,20 @@ struct PredictRequest {
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);
 
+// What a model exact in expectation would score on runs as noisy as the calibration runs: each
+// configuration's measured time drawn as prediction x exp(sd z), z standard normal, with the
+// log_sd of its band, and the median and the max of |error| over the configurations taken per
+// draw. Quantiles over `draws` (a fixed seed: the same figures every time). It tells a miss of
+// the model from one the host's run-to-run noise alone would make (model/NOTES.md, session 46).
+struct Quantiles {
+    double p05 = 0, median = 0, p95 = 0;
+};
+struct NoiseFloor {
+    Quantiles median_abs_error, max_abs_error;
+    std::size_t configurations = 0, draws = 0;
+};
+NoiseFloor wall_noise_floor(std::span<const double> log_sd, std::size_t draws = 20000);
+
 struct ValidateOptions {
     std::optional<double> max_error; // fraction
 };
