@@ -512,6 +512,15 @@ def markdown(model, validation, args, out):
              "on the AMD host's 23 stored jobs 3.30 / 11.3 against 3.47 / 11.7 %): **tuned**. With "
              "round a only (sessions 38-43's calibration) on the same validation runs: {o} "
              "(round-a-list-table/validation.json)."),
+            (any("_s0.35_list_b" in r["path"] or "_s0.35_table_b" in r["path"]
+                 for r in model["calibration_runs"]),
+             "s035-round-a",
+             "Cell+List's and Cell+Table's dam breaks at scale 0.35 in round b as well, added in "
+             "session 46 after its first main job, where they ran in round a only (sessions 44-45) and "
+             "a slow spell on round a (1.38 times the fit, round b 0.80-0.86) put every list and table "
+             "dam break 33-51 % high: past 0.036 s of Froude time they are the only list or table "
+             "runs: **tuned**. With round a's alone (sessions 44-45's calibration) on the same "
+             "validation runs: {o} (s035-round-a/validation.json)."),
             (not any("_s0.35_sorted_t2_" in r["path"] for r in model["calibration_runs"]),
              "two-thread-scales",
              "Cell+Sorted at 2 threads calibrated on its dam break at scale 0.7 and still tank at "
