@@ -493,10 +493,11 @@ def markdown(model, validation, args, out):
              "-12.8, +0.1, -5.2, -10.0, -7.7 %), mean per-job median 8.1 against 9.2 %, mean max "
              "25.0 against 28.0 %; on the AMD host's "
              "23 stored jobs the fastest repeat had been a little better (mean per-job median "
-             "3.27 against 3.47 %): **tuned**. Session 46's three jobs, where slow spells covered "
-             "whole calibration rounds, turned the ten Intel jobs' means to 10.5 against 9.6 % "
-             "(median), 29.0 against 28.2 % (max), +4.2 against -4.9 % (signed): within the "
-             "jobs' noise either way, so the rule stays (model/NOTES.md, session 46). With each "
+             "3.27 against 3.47 %): **tuned**. With session 46's four jobs (in two of them slow "
+             "spells covered whole calibration rounds) the eleven Intel jobs' means are 10.0 "
+             "against 9.7 % (median), 28.1 against 27.3 % (max), +3.7 against -5.2 % (signed), "
+             "pooled lower in 7 of 11 on both the median and the max: within the jobs' noise "
+             "either way, so the rule stays (model/NOTES.md, session 46). With each "
              "repeated configuration's fastest run on "
              "the same runs: {o} (fastest-repeat/validation.json)."),
             (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
