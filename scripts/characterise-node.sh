@@ -61,8 +61,9 @@ stream_args=(--reps 3)
 # 8 s a run and the DGEMM stage took 132 s: past 10 s of timed runs a size stops (at least 2).
 # 4000^2 then still took 41 of the stage's 59 s (session 45) for a figure within 1.3 % of
 # 2000^2's there (16.4 against 16.6 GFLOP/s at 1 thread) and 3 % above it on the AMD host (54.3
-# against 52.5): the job stops at 2000^2 (dgemm's default keeps 4000^2).
-dgemm_args=(--reps 5 --max-seconds 10 --sizes 1000,2000)
+# against 52.5): the job stops at 2000^2 (dgemm's default keeps 4000^2). Three runs a size
+# (session 47): the stage took 11.7 s against 17.5 s with five, best 29.7 against 29.4 GFLOP/s.
+dgemm_args=(--reps 3 --max-seconds 10 --sizes 1000,2000)
 pingpong_args=()
 # The halo exchange benchmarks at 0.15 s a point (exchange's default 0.3; at least 20 rounds
 # either way, so the 10 and 30 ms gaps keep their length): 41 s of the job on the Intel host
@@ -70,11 +71,17 @@ pingpong_args=()
 # point since session 45: the mean shift cost's variation over repeats 8.5 against 6.4 % at
 # 0.2 s, model/NOTES.md); these serve the runs without one and the loads above the cores.
 exchange_args=(--seconds-per-point 0.15)
+# Above the cores the model in use replays the step (its shifts included) from the app's own
+# calibration runs; these benchmarks serve other loads and the comparison models, at 0.1 s a
+# point and 10 rounds (15 s of the job at 3 and 4 ranks in session 47, the 30 ms gap's 20
+# rounds alone 1.8 s of each).
+exchange_shared_args=(--seconds-per-point 0.1 --min-rounds 10)
 if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
     stream_args=(--size 2000000 --reps 3)
     dgemm_args=(--sizes 300 --reps 2 --probe-reps 1)
     pingpong_args=(--max-bytes 65536 --max-samples 50)
     exchange_args=(--gaps-us 0,1000,10000 --payload-bytes 64,4096 --seconds-per-point 0.05)
+    exchange_shared_args=("${exchange_args[@]}")
 fi
 
 stage "STREAM"
@@ -105,7 +112,9 @@ for n in $(printf '%s\n' 2 "$cores" $((cores + cores / 2)) $((2 * cores)) | sort
     modes=()
     [ "$n" -le "$cores" ] && modes=(--following --overlapped)
     stage "halo exchange on $n ranks${modes:+ (blocking, following and overlapped)}"
-    bash "$root/scripts/mpirun.sh" -n "$n" "$build/bin/exchange" "${exchange_args[@]}" \
+    args=("${exchange_args[@]}")
+    [ "$n" -le "$cores" ] || args=("${exchange_shared_args[@]}")
+    bash "$root/scripts/mpirun.sh" -n "$n" "$build/bin/exchange" "${args[@]}" \
         "${modes[@]}" --quiet --json "$work/exchange_r$n.json"
 done
 

@@ -241,9 +241,14 @@ def fresh_source(args):
     if not fresh:
         return "figures from the machine profile"
     took = f", {args.fresh_exchange_s:.0f} s in all" if args.fresh_exchange_s else ""
+    # A blocking run and its --overlap twin right after it share one (model-node.sh --twin).
+    names = [r["exchange_report"] for r in reports if r.get("exchange_report")]
+    shared = sum(1 for n in set(names) if names.count(n) > 1)
+    twins = (f", the --overlap twin of a blocking run reusing that run's ({shared} pair"
+             f"{'s' if shared != 1 else ''})" if shared else "")
     return (f"an exchange benchmark on the run's rank count right before each validation run within "
-            f"the cores, {fresh} of the {multi} multi-rank runs (sph --exchange{took}); the others "
-            f"the machine profile's")
+            f"the cores{twins}, {fresh} of the {multi} multi-rank runs (sph --exchange{took}); the "
+            f"others the machine profile's")
 
 
 def inline_by_load(validation, key="inline_error"):

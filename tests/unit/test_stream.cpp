@@ -53,6 +53,33 @@ TEST(Stream, ValidationCatchesOneWrongElement) {
     EXPECT_EQ(v.rel_error[0], 0.0);
 }
 
+// The threads of the benchmark each sum their own part: the parts' sums give the whole check,
+// and a wrong element in any part fails it.
+TEST(Stream, ValidationSummedInPartsMatchesTheWhole) {
+    Arrays x(1000);
+    x.iterate(3);
+    x.c[900] -= 0.25;
+    const auto expected = st::expected_values<double>(3);
+    const auto whole = st::validate<double>(x.a, x.b, x.c, expected);
+    std::array<double, 3> sums{};
+    for (int t = 0; t < 3; ++t) {
+        const auto rg = st::chunk(x.a.size(), 3, t);
+        const auto part = [&](const std::vector<double> &v) {
+            return std::span<const double>(v.data() + rg.begin, rg.end - rg.begin);
+        };
+        const auto s = st::abs_error_sums<double>(part(x.a), part(x.b), part(x.c), expected);
+        for (std::size_t k = 0; k < 3; ++k)
+            sums[k] += s[k];
+    }
+    const auto parts = st::validation_from_sums<double>(sums, x.a.size(), expected);
+    EXPECT_FALSE(parts.ok);
+    EXPECT_EQ(parts.ok, whole.ok);
+    for (std::size_t k = 0; k < 3; ++k)
+        EXPECT_DOUBLE_EQ(parts.rel_error[k], whole.rel_error[k]) << k;
+    EXPECT_GT(parts.rel_error[2], st::validation_epsilon);
+    EXPECT_FALSE(st::validation_from_sums<double>({0, 0, 0}, 0, expected).ok); // no elements
+}
+
 TEST(Stream, ValidationCatchesAWrongIterationCount) {
     Arrays x(100);
     x.iterate(4);
