@@ -170,7 +170,7 @@ std::optional<std::string> better_coretype(const std::string &corename) {
 
 Config parse(int argc, char **argv, const Topology &topo) {
     Config cfg;
-    CLI::App app{"DGEMM (cblas_dgemm from OpenBLAS) GFLOP/s over matrix sizes and thread counts, "
+    cli::App app{"DGEMM (cblas_dgemm from OpenBLAS) GFLOP/s over matrix sizes and thread counts, "
                  "with an FMA peak probe giving the attainable compute ceiling."};
     app.add_option("--sizes", cfg.sizes,
                    "Square matrix sizes (default 1000,2000,4000 as memory allows)")

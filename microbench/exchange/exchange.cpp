@@ -67,30 +67,30 @@ struct Config {
 
 Config parse(int argc, char **argv) {
     Config cfg;
-    CLI::App app{"The SPH proxy's halo exchange (handshake, then count + payload MPI_Sendrecv "
+    cli::App app{"The SPH proxy's halo exchange (handshake, then count + payload MPI_Sendrecv "
                  "east, then west, along a chain of ranks) after a fixed amount of work per "
                  "exchange: cost per shift (mean, median, p90) by compute gap and payload, and "
                  "the throughput lost to time-sharing above the core count. Run under "
                  "scripts/mpirun.sh with >= 2 ranks, once per rank count the model should know."};
-    app.option_defaults()->always_capture_default();
+    app.always_capture_default();
     app.add_option("--gaps-us", cfg.gaps_us,
                    "Work between exchanges, in microseconds of one rank "
                    "running alone")
-        ->check(Finite & CLI::Range(0.0, 1e6))
+        ->check(Finite & cli::Range(0.0, 1e6))
         ->delimiter(',');
     app.add_option("--payload-bytes", cfg.payload_bytes, "Payload of each Sendrecv (bytes)")
-        ->check(CLI::Range(1, 1 << 26))
+        ->check(cli::Range(1, 1 << 26))
         ->delimiter(',');
     app.add_option("--seconds-per-point", cfg.seconds_per_point,
                    "Time spent per (gap, payload) point, about")
-        ->check(Finite & CLI::Range(1e-3, 600.0));
+        ->check(Finite & cli::Range(1e-3, 600.0));
     app.add_option("--min-rounds", cfg.min_rounds, "Exchanges timed per point at least")
-        ->check(CLI::Range(5, 1000000));
+        ->check(cli::Range(5, 1000000));
     app.add_option("--max-rounds", cfg.max_rounds, "Exchanges timed per point at most")
-        ->check(CLI::Range(5, 1000000));
+        ->check(cli::Range(5, 1000000));
     app.add_option("--work-bytes", cfg.work_bytes,
                    "Buffer the work streams through per rank (cache footprint of the compute)")
-        ->check(CLI::Range(std::int64_t{4096}, std::int64_t{1} << 32));
+        ->check(cli::Range(std::int64_t{4096}, std::int64_t{1} << 32));
     app.add_flag("--following", cfg.following,
                  "Also measure a shift that follows another: the work, a " +
                      std::to_string(lead_bytes) +

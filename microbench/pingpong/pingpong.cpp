@@ -253,7 +253,7 @@ Locality pair_locality(const Topology &topo, const RankInfo &a, const RankInfo &
 
 Config parse(int argc, char **argv) {
     Config cfg;
-    CLI::App app{"MPI ping-pong over every rank pair (one pair at a time): Hockney alpha/beta per "
+    cli::App app{"MPI ping-pong over every rank pair (one pair at a time): Hockney alpha/beta per "
                  "pair with a piecewise fit at the eager/rendezvous switch, two-point estimates, "
                  "and locality classes. Run under mpirun with >= 2 ranks (scripts/mpirun.sh)."};
     app.add_option("--min-bytes", cfg.min_bytes, "Smallest message (power of two)");

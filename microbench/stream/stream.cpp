@@ -226,7 +226,7 @@ nlohmann::json validation_json(const st::Validation &v) {
 
 Config parse(int argc, char **argv, const Topology &topo) {
     Config cfg;
-    CLI::App app{"STREAM memory bandwidth (copy, scale, add, triad, non-temporal triad) over a "
+    cli::App app{"STREAM memory bandwidth (copy, scale, add, triad, non-temporal triad) over a "
                  "thread sweep with compact and scatter affinity bound by hwloc."};
     app.add_option("--size", cfg.size,
                    "Elements per array (default: 4x the last-level cache, STREAM's rule)");

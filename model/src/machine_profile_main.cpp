@@ -18,7 +18,7 @@ struct Config {
 
 int run(int argc, char **argv) {
     Config cfg;
-    CLI::App app{"Merge the stream, dgemm and pingpong reports into one machine profile with "
+    cli::App app{"Merge the stream, dgemm and pingpong reports into one machine profile with "
                  "peak GFLOP/s, STREAM bandwidth, the roofline ridge point and the Hockney "
                  "parameters."};
     app.add_option("--stream", cfg.stream, "stream report (JSON)")->required();

@@ -30,19 +30,19 @@ struct Options {
 
 int run(int argc, char **argv) {
     Options o;
-    CLI::App app{"The SPH runtime model: calibrate it from SPH reports and a machine profile, "
+    cli::App app{"The SPH runtime model: calibrate it from SPH reports and a machine profile, "
                  "predict the wall time per rank count with its breakdown, and validate "
                  "predictions against measured reports."};
     app.require_subcommand(1);
-    app.get_formatter()->column_width(34);
+    app.column_width(34);
 
     auto *cal = app.add_subcommand("calibrate", "Fit the model to SPH reports");
     cal->add_option("--machine", o.machine, "machine.json (machine-profile)")
         ->required()
-        ->check(CLI::ExistingFile);
+        ->check(cli::ExistingFile);
     cal->add_option("--runs", o.runs, "SPH reports (sph --report) to calibrate with")
         ->required()
-        ->check(CLI::ExistingFile);
+        ->check(cli::ExistingFile);
     cal->add_option("--out", o.out, "model to write (JSON)")->required();
     cal->add_flag("--allow-other-host", o.allow_other_host,
                   "Accept reports measured on another host than the machine profile's");
@@ -51,7 +51,7 @@ int run(int argc, char **argv) {
                     "set within one standard error of the best cross-validation score) or "
                     "pooled-one-percent (one pooled fit, a term kept for 1 % better score)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"levelled-one-se", "pooled-one-percent"}));
+        ->check(cli::IsMember({"levelled-one-se", "pooled-one-percent"}));
     cal->add_option("--time-profile", o.time_profile,
                     "How the cost of an interaction evolves with the flow: froude (a profile of "
                     "measured / fitted compute over Froude time from the calibration runs, a "
@@ -59,13 +59,13 @@ int run(int argc, char **argv) {
                     "ratio over +-2 intervals, sessions 16-41) or none (the fit alone, with the "
                     "memory-order term descents at simulated time)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"froude", "froude-windowed", "none"}));
+        ->check(cli::IsMember({"froude", "froude-windowed", "none"}));
     cal->add_option("--fit-weights", o.fit_weights,
                     "How the compute-cost fit and its cross-validation weigh the rank-intervals: "
                     "absolute (seconds per step) or relative (each divided by its run's median "
                     "step, so small-scale runs count as much as large ones)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"absolute", "relative"}));
+        ->check(cli::IsMember({"absolute", "relative"}));
     cal->add_option("--run-level", o.run_level,
                     "A setup's cost level from its calibration runs: pooled (the pooled level "
                     "of all runs, through the time profile: a mean, which is what a sum of "
@@ -73,19 +73,19 @@ int run(int argc, char **argv) {
                     "configuration, the median over configurations; the profile carries the "
                     "shape only: sessions 43-44) or median (the median run, the same profile)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"fastest-repeat", "median", "pooled"}));
+        ->check(cli::IsMember({"fastest-repeat", "median", "pooled"}));
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
     pre->add_option("--model", o.model, "model.json (sphmodel calibrate)")
         ->required()
-        ->check(CLI::ExistingFile);
+        ->check(cli::ExistingFile);
     pre->add_option("--setup", q.setup, "Setup")
         ->capture_default_str()
-        ->check(CLI::IsMember({"dambreak", "still", "column"}));
+        ->check(cli::IsMember({"dambreak", "still", "column"}));
     pre->add_option("--grid", q.grid, "Cell grid scheme")
         ->capture_default_str()
-        ->check(CLI::IsMember({"list", "table", "sorted"}));
+        ->check(cli::IsMember({"list", "table", "sorted"}));
     pre->add_option("--scale", q.scale, "Geometry scale")
         ->capture_default_str()
         ->check(FinitePositive);
@@ -96,40 +96,40 @@ int run(int argc, char **argv) {
     pre->add_option("--ranks", q.ranks, "Rank counts, comma separated")
         ->delimiter(',')
         ->capture_default_str()
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(cli::Range(1, 1 << 20));
     pre->add_option("--threads", q.threads, "OpenMP threads per rank")
         ->capture_default_str()
-        ->check(CLI::Range(1, 1024));
+        ->check(cli::Range(1, 1024));
     auto *o_steps = pre->add_option("--steps", o.steps, "Time steps")
-                        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
+                        ->check(cli::Range(std::int64_t{1}, std::int64_t{1} << 40));
     auto *o_end =
         pre->add_option("--end-time", o.end_time, "Simulated time, s")->check(FinitePositive);
     o_steps->excludes(o_end);
     pre->add_option("--interval", q.interval, "Steps per predicted interval (as sph --interval)")
         ->capture_default_str()
-        ->check(CLI::Range(1, 1 << 30));
+        ->check(cli::Range(1, 1 << 30));
     pre->add_option("--decomposition", q.decompositions,
                     "Slabs, comma separated: equal (the thesis'), balanced (sph --decomposition "
                     "balanced, particle-count weights) or both")
         ->delimiter(',')
         ->capture_default_str()
-        ->check(CLI::IsMember({"equal", "balanced"}));
+        ->check(cli::IsMember({"equal", "balanced"}));
     pre->add_option("--balance-weights", o.balance_weights,
                     "Balanced slabs weighted as sph cuts them: count (its default) or model "
                     "(sph --model: this model's seconds per fluid and wall particle)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"count", "model"}));
+        ->check(cli::IsMember({"count", "model"}));
     pre->add_option("--rebalance-every", q.rebalance_every,
                     "Steps between re-cuts of balanced slabs (as sph; 0: every interval)")
         ->capture_default_str()
-        ->check(CLI::Range(0, 1 << 30));
+        ->check(cli::Range(0, 1 << 30));
     pre->add_option("--cores", q.cores, "Cores of the node (default: the model's machine)")
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(cli::Range(1, 1 << 20));
     pre->add_option("--nodes", q.nodes,
                     "Nodes the ranks span, in blocks as srun -N places them (> 1 needs the "
                     "machine's other_node class: scripts/slurm/pingpong-nodes.sbatch)")
         ->capture_default_str()
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(cli::Range(1, 1 << 20));
     pre->add_flag("--overlap", q.overlap,
                   "As sph --overlap (Cell+Sorted only): ghost and density exchanges behind the "
                   "interior columns");
@@ -141,7 +141,7 @@ int run(int argc, char **argv) {
                     "calibration fitted one (line; else per-step), or as a factor on it (ratio, "
                     "the model before session 34)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"per-step", "line", "ratio", "replay"}));
+        ->check(cli::IsMember({"per-step", "line", "ratio", "replay"}));
     pre->add_option_function<double>(
            "--replay-slice-ms", [&q](double ms) { q.replay_slice_s = ms * 1e-3; },
            "With --time-sharing-overhead replay: the scheduler slice of a computing rank, ms "
@@ -152,10 +152,10 @@ int run(int argc, char **argv) {
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");
     val->add_option("--prediction", o.predictions, "prediction files (sphmodel predict)")
         ->required()
-        ->check(CLI::ExistingFile);
+        ->check(cli::ExistingFile);
     val->add_option("--measured", o.measured, "measured SPH reports")
         ->required()
-        ->check(CLI::ExistingFile);
+        ->check(cli::ExistingFile);
     auto *o_max = val->add_option("--max-error", o.max_error,
                                   "Exit 1 when a wall-time |error| exceeds this fraction")
                       ->check(FiniteNonNegative);

@@ -33,7 +33,7 @@ Config parse(int argc, char **argv) {
     std::string setup = "dambreak", grid = "table", boundary = "fixed", decomposition = "equal";
     std::int64_t steps = 0;
     double end_time = 0;
-    CLI::App app{"SPH proxy: 2D weakly compressible SPH (dam break, still tank, water column) "
+    cli::App app{"SPH proxy: 2D weakly compressible SPH (dam break, still tank, water column) "
                  "on MPI slabs with OpenMP threads, Cell+List, Cell+Table or Cell+Sorted grids, "
                  "instrumented for performance modelling. Launch with scripts/mpirun.sh -n RANKS."};
     app.add_option("--setup", setup, "dambreak, still or column");
@@ -48,27 +48,27 @@ Config parse(int argc, char **argv) {
     app.add_option("--dt", cfg.dt, "Time step in seconds (checked against the CFL limit)")
         ->check(FinitePositive);
     auto *o_steps = app.add_option("--steps", steps, "Number of time steps")
-                        ->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40));
+                        ->check(cli::Range(std::int64_t{0}, std::int64_t{1} << 40));
     auto *o_end = app.add_option("--end-time", end_time, "Simulated time to reach, in seconds")
                       ->check(FiniteNonNegative);
     app.add_option(
            "--threads", cfg.threads,
            "OpenMP threads per rank (default OMP_NUM_THREADS, else SLURM_CPUS_PER_TASK, else the "
            "rank's bound cores shared by the node's ranks)")
-        ->check(CLI::Range(1, 1024));
+        ->check(cli::Range(1, 1024));
     app.add_option("--interval", cfg.interval, "Steps per report interval")
-        ->check(CLI::Range(1, 1 << 30));
+        ->check(cli::Range(1, 1 << 30));
     app.add_option("--report", cfg.report, "Write the JSON report to this file");
     auto *o_machine =
         app.add_option("--machine", cfg.machine,
                        "machine.json: record per interval and rank the predicted time of the "
                        "messages actually sent (comm_predict_s; comm_hockney_s by ping-pong alone)")
-            ->check(CLI::ExistingFile);
+            ->check(cli::ExistingFile);
     app.add_option("--exchange", cfg.exchange,
                    "An exchange benchmark report of this host at this run's rank count: cost the "
                    "shifts with it instead of the machine profile's (measure it right before the "
                    "run where exchange costs drift, see model/NOTES.md)")
-        ->check(CLI::ExistingFile)
+        ->check(cli::ExistingFile)
         ->needs(o_machine);
     app.add_option("--replay-slice-ms", cfg.replay_slice_ms,
                    "With --machine above the cores (one-thread ranks on one node, blocking "
@@ -79,37 +79,37 @@ Config parse(int argc, char **argv) {
         ->needs(o_machine);
     app.add_option("--vtk", cfg.vtk_dir, "Write ParaView snapshots (.vtu + sph.pvd) here");
     app.add_option("--vtk-every", cfg.vtk_every, "Steps between snapshots")
-        ->check(CLI::Range(1, 1 << 30));
+        ->check(cli::Range(1, 1 << 30));
     app.add_option("--column-width", cfg.column_width, "Width a of the column setup, metres")
         ->check(FinitePositive);
     app.add_option("--alpha", cfg.physics.alpha, "Artificial viscosity coefficient")
         ->check(FiniteNonNegative);
     app.add_option("--shepard-every", cfg.physics.shepard_every,
                    "Steps between Shepard density filters (0: never)")
-        ->check(CLI::Range(0, 1 << 30));
+        ->check(cli::Range(0, 1 << 30));
     app.add_option("--checkpoint", cfg.checkpoint_dir,
                    "Write checkpoints into this directory (one file per rank and a manifest; "
                    "the previous one stays valid until the new one is complete)");
     auto *o_ck_every =
         app.add_option("--checkpoint-every", cfg.checkpoint_every,
                        "Steps between checkpoints, a multiple of --interval (default: --interval)")
-            ->check(CLI::Range(1, 1 << 30));
+            ->check(cli::Range(1, 1 << 30));
     app.add_option("--restart", cfg.restart_dir,
                    "Continue from the latest checkpoint in this directory (same options; any "
                    "rank count)")
-        ->check(CLI::ExistingDirectory);
+        ->check(cli::ExistingDirectory);
     app.add_option("--decomposition", decomposition,
                    "Slabs: equal (the thesis' equal widths) or balanced (cut points moved so "
                    "every rank's cost per step is as equal as whole columns allow)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"equal", "balanced"}));
+        ->check(cli::IsMember({"equal", "balanced"}));
     auto *o_every = app.add_option("--rebalance-every", cfg.rebalance_every,
                                    "Balanced slabs: steps between re-cuts (default: --interval)")
-                        ->check(CLI::Range(1, 1 << 30));
+                        ->check(cli::Range(1, 1 << 30));
     auto *o_model = app.add_option("--model", cfg.cost_model,
                                    "Balanced slabs: cut by the calibrated model's predicted "
                                    "seconds per column (model.json of sphmodel calibrate)")
-                        ->check(CLI::ExistingFile);
+                        ->check(cli::ExistingFile);
     app.add_option("--wall-weight", cfg.balance.walls,
                    "Balanced slabs: cost of a wall particle against a fluid particle's 1")
         ->capture_default_str()
@@ -124,7 +124,7 @@ Config parse(int argc, char **argv) {
                    "order (0: never; the grid sorts a copy every step either way, and the "
                    "results are the same; measured slower on this problem, see sph/NOTES.md)")
         ->capture_default_str()
-        ->check(CLI::Range(0, 1 << 30));
+        ->check(cli::Range(0, 1 << 30));
     app.add_flag("--quiet", cfg.quiet, "No progress line");
     parse_cli(app, argc, argv);
 
