@@ -11,6 +11,13 @@ namespace {
 
 using namespace sphperf;
 
+// 'path', built by appends: GCC 12 flags "'" + path.string() + "'" with a false -Wrestrict.
+std::string quoted(const std::filesystem::path &path) {
+    std::string s = "'";
+    s.append(path.string()).append("'");
+    return s;
+}
+
 struct Config {
     std::filesystem::path stream, dgemm, pingpong, pingpong_nodes, out;
     std::vector<std::filesystem::path> dgemm_alternatives, exchanges;
@@ -40,7 +47,7 @@ int run(int argc, char **argv) {
     // Loaded and checked in argument order, so the first bad file is the one named.
     auto checked = [](const std::filesystem::path &path, const char *benchmark, const char *kind) {
         auto j = model::load_report(path, benchmark);
-        model::check_report(j, kind, "'" + path.string() + "'");
+        model::check_report(j, kind, quoted(path));
         return j;
     };
     const auto stream = checked(cfg.stream, "stream", "stream");
@@ -60,7 +67,7 @@ int run(int argc, char **argv) {
         profile = model::build_profile(report_header("machine", topo), stream, dgemm, pingpong,
                                        alts, exchanges);
         if (!nodes.is_null())
-            model::add_inter_node(profile, nodes, "'" + cfg.pingpong_nodes.string() + "'");
+            model::add_inter_node(profile, nodes, quoted(cfg.pingpong_nodes));
     } catch (const nlohmann::json::exception &e) {
         throw UsageError(std::string("a report lacks a field the profile needs: ") + e.what());
     }
