@@ -63,7 +63,11 @@ std::vector<Observation> load_experiment(const std::string &file, int t_col, int
 } // namespace
 
 TEST(SphCli, CountAndMassConservedAndFrontIndependentOfRanks) {
-    const std::string args = "--steps 2000 --interval 500 --threads 1";
+    // Half scale (1891 fluid particles): the same checks as at scale 1 in a quarter of the time
+    // (35 against 141 s of CI for the three runs, session 47); the 0.1 ms step covers more of the
+    // flow in Froude time, and ranks 2 and 3 still migrate and export.
+    constexpr int fluid = 1891;
+    const std::string args = "--scale 0.5 --steps 2000 --interval 500 --threads 1";
     std::vector<nlohmann::json> runs;
     for (int ranks : {1, 2, 3}) {
         runs.push_back(run_sph("conserve" + std::to_string(ranks), ranks, args));
@@ -78,10 +82,10 @@ TEST(SphCli, CountAndMassConservedAndFrontIndependentOfRanks) {
                 field += r["field"].get<double>();
             for (const auto &c : iv["columns"])
                 columns += c.get<double>();
-            EXPECT_EQ(field, 7381);
+            EXPECT_EQ(field, fluid);
             for (const auto &r : iv["ranks"])
                 EXPECT_EQ(r["escaped"], 0) << "fluid outside the tank";
-            EXPECT_EQ(columns, 7381);
+            EXPECT_EQ(columns, fluid);
             EXPECT_EQ(iv["ranks"].size(), static_cast<std::size_t>(ranks));
         }
         const auto &mass = j["physics"]["mass"];
@@ -89,7 +93,8 @@ TEST(SphCli, CountAndMassConservedAndFrontIndependentOfRanks) {
             EXPECT_NEAR(m.get<double>(), mass[0].get<double>(), 1e-9 * mass[0].get<double>());
     }
     const double front1 = runs[0]["physics"]["front_x"].back().get<double>();
-    EXPECT_GT(front1, 1.25); // the surge has started moving
+    const double dam_width = runs[0]["config"]["dam_width"].get<double>();
+    EXPECT_GT(front1, 1.04 * dam_width); // the surge has started moving
     for (int k : {1, 2})
         EXPECT_NEAR(runs[k]["physics"]["front_x"].back().get<double>(), front1, 0.01 * front1)
             << k + 1 << " ranks";
