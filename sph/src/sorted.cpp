@@ -7,6 +7,7 @@
 #endif
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <stdexcept>
@@ -395,6 +396,19 @@ void pack_range_portable(const CellSorted::View &v, double xi, double yi, double
     out.remote += remote;
 }
 
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+// The sum of the eight lanes. Not _mm512_reduce_add_epi64: GCC 12's header builds it on an
+// undefined register and warns (-Wuninitialized, GCC bug 105593) in every unit inlining it.
+std::uint64_t lane_sum(__m512i v) {
+    alignas(64) std::array<std::int64_t, 8> lane;
+    _mm512_store_si512(lane.data(), v);
+    std::int64_t sum = 0;
+    for (std::int64_t x : lane)
+        sum += x;
+    return static_cast<std::uint64_t>(sum);
+}
+#endif
+
 template <Counted count, Partners partners>
 void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, std::size_t b,
                 std::size_t e, PackedCandidates &out) {
@@ -442,10 +456,9 @@ void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, s
     }
     out.size = n;
     if constexpr (count != Counted::no)
-        out.in_range +=
-            (n - packed_before) + static_cast<std::uint64_t>(_mm512_reduce_add_epi64(at_zero));
+        out.in_range += (n - packed_before) + lane_sum(at_zero);
     if constexpr (count == Counted::remote)
-        out.remote += static_cast<std::uint64_t>(_mm512_reduce_add_epi64(remote));
+        out.remote += lane_sum(remote);
 #else
     pack_range_portable<count, partners>(v, xi, yi, r2max, b, e, out);
 #endif
