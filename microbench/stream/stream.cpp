@@ -88,8 +88,9 @@ public:
         const auto places = topo.placement(threads, affinity);
         int team = 0;
         std::atomic<int> bind_failures{0};
-        // Bind, then first-touch each thread's own part of the arrays (pages land near that
-        // core). The threads stay bound: OpenMP keeps its pool for the later regions.
+        // Bind, then first-touch each thread's own part of the arrays with STREAM's initial
+        // values (pages land near that core). The threads stay bound: OpenMP keeps its pool for
+        // the later regions.
         timed_parallel(n, threads, [&](int t, st::Range rg) {
             try { // an exception must not leave an OpenMP region
                 topo.bind_this_thread(places[static_cast<std::size_t>(t)]);
@@ -98,9 +99,7 @@ public:
             }
             if (t == 0)
                 team = omp_get_num_threads();
-            std::fill(a_.get() + rg.begin, a_.get() + rg.end, Real{0});
-            std::fill(b_.get() + rg.begin, b_.get() + rg.end, Real{0});
-            std::fill(c_.get() + rg.begin, c_.get() + rg.end, Real{0});
+            initialise(rg);
         });
         if (bind_failures > 0)
             throw std::runtime_error("hwloc could not bind " +
@@ -111,17 +110,14 @@ public:
                                      " threads, asked for " + std::to_string(threads));
     }
 
-    // STREAM's initial values (and its doubling of a), set by each thread on its own part.
+    // STREAM's initial values again, by each thread on its own part, once a width has used
+    // them (the first width finds them as the constructor left them).
     void reset() {
-        timed_parallel(n_, threads_, [&](int, st::Range rg) {
-            for (std::size_t j = rg.begin; j < rg.end; ++j) {
-                a_[j] = st::Initial<Real>::a;
-                b_[j] = st::Initial<Real>::b;
-                c_[j] = st::Initial<Real>::c;
-            }
-            for (std::size_t j = rg.begin; j < rg.end; ++j)
-                a_[j] = 2 * a_[j];
-        });
+        if (!used_) {
+            used_ = true;
+            return;
+        }
+        timed_parallel(n_, threads_, [&](int, st::Range rg) { initialise(rg); });
     }
 
     // The reference's check, each thread summing its own part (a serial pass over 3.6 GB took
@@ -149,9 +145,21 @@ public:
     int threads() const { return threads_; }
 
 private:
+    // STREAM's initial values and its doubling of a, on one thread's part.
+    void initialise(st::Range rg) {
+        for (std::size_t j = rg.begin; j < rg.end; ++j) {
+            a_[j] = st::Initial<Real>::a;
+            b_[j] = st::Initial<Real>::b;
+            c_[j] = st::Initial<Real>::c;
+        }
+        for (std::size_t j = rg.begin; j < rg.end; ++j)
+            a_[j] = 2 * a_[j];
+    }
+
     std::size_t n_;
     int threads_;
     Buffer a_, b_, c_;
+    bool used_ = false;
 };
 
 ConfigResult run_config(const Topology &topo, const st::KernelSet &ks, Arrays &arrays,
