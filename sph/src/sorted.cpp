@@ -328,17 +328,32 @@ namespace {
 // every lane then computes finite terms and no arithmetic is conditional.
 constexpr double tiny = 1e-150;
 
-constexpr int lanes = 8; // one AVX-512 vector of doubles; fixed, so sums do not depend on ISA
+// Lanes of the sums, fixed so that they do not depend on the ISA. Shepard's range loops: one
+// AVX-512 vector of doubles. The packed pair loops: 16, two vectors' worth of independent pairs
+// in flight per iteration. Each pair's square root, division and kernel polynomial form a long
+// dependency chain and a particle's loop runs only 3-6 iterations, so the loops wait on latency:
+// in-process alternation (sph/NOTES.md, session 48) put 16 lanes at 0.88-0.97 of 8's time in
+// the density pass and 0.95-1.0 in the forces, 4 lanes at 1.19 and 32 at 1.04-1.14.
+constexpr int lanes = 8;
+constexpr int pair_lanes = 16;
 
 // A sum split over a fixed number of lanes by position within each range (or packed list),
-// then added in a fixed tree: deterministic for given range contents, and the inner loop
-// vectorises.
-struct LaneSum {
-    double v[lanes] = {};
+// then added in a fixed tree (neighbours pairwise): deterministic for given range contents, and
+// the inner loop vectorises.
+template <int N> struct LaneSumOf {
+    static_assert(N > 0 && (N & (N - 1)) == 0, "a power of two");
+    double v[N] = {};
     double total() const {
-        return ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]));
+        std::array<double, N> t;
+        std::copy(std::begin(v), std::end(v), t.begin());
+        for (int n = N; n > 1; n /= 2)
+            for (int k = 0; k < n / 2; ++k)
+                t[k] = t[2 * k] + t[2 * k + 1];
+        return t[0];
     }
 };
+using LaneSum = LaneSumOf<lanes>;
+using PairSum = LaneSumOf<pair_lanes>;
 
 // Calls body(s, lane) for every sorted position s of the 3 x 3 cells around cell (col, row):
 // columns west to east, each one contiguous range (cells are numbered column by column).
@@ -476,8 +491,8 @@ void pack_neighbourhood(const CellSorted::View &v, int col, int row, std::size_t
     for (int c = c0; c <= c1; ++c)
         candidates += v.start[c * v.rows + r1 + 1] - v.start[c * v.rows + r0];
     // Room for every candidate, the vector stores past the last one and the padding.
-    if (out.index.size() < candidates + lanes) {
-        const std::size_t room = std::bit_ceil(candidates + lanes);
+    if (out.index.size() < candidates + pair_lanes) {
+        const std::size_t room = std::bit_ceil(candidates + pair_lanes);
         out.index.resize(room);
         out.dx.resize(room);
         out.dy.resize(room);
@@ -491,7 +506,7 @@ void pack_neighbourhood(const CellSorted::View &v, int col, int row, std::size_t
         else
             pack_range<count, partners>(v, v.x[self], v.y[self], r2max, b, e, out);
     }
-    out.padded = (out.size + lanes - 1) / lanes * lanes;
+    out.padded = (out.size + pair_lanes - 1) / pair_lanes * pair_lanes;
     for (std::size_t q = out.size; q < out.padded; ++q) {
         out.index[q] = static_cast<std::uint32_t>(self);
         out.dx[q] = out.dy[q] = 0;
@@ -579,10 +594,10 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                 const double vxi = v.vx[i], vyi = v.vy[i];
                 const std::uint32_t *idx = nbr.index.data();
                 const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-                LaneSum drho;
-                for (std::size_t q = 0; q < nbr.padded; q += lanes) {
+                PairSum drho;
+                for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
 #pragma omp simd
-                    for (int l = 0; l < lanes; ++l) {
+                    for (int l = 0; l < pair_lanes; ++l) {
                         const std::uint32_t j = idx[q + l];
                         const double dx = sx[q + l], dy = sy[q + l];
                         // 0 for the padding, which sits at distance 0 (coincident images have
@@ -631,10 +646,10 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
         const double rhoi = v.rho[i], pri = v.p_over_rho2[i];
         const std::uint32_t *idx = nbr.index.data();
         const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-        LaneSum ax, ay;
-        for (std::size_t q = 0; q < nbr.padded; q += lanes) {
+        PairSum ax, ay;
+        for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
 #pragma omp simd
-            for (int l = 0; l < lanes; ++l) {
+            for (int l = 0; l < pair_lanes; ++l) {
                 const std::uint32_t j = idx[q + l];
                 const double dx = sx[q + l], dy = sy[q + l];
                 const double d2 = dx * dx + dy * dy;

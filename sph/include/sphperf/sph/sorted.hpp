@@ -6,9 +6,9 @@
 // three ranges, each (2 rows_per_cell + 1) / rows_per_cell cells tall instead of 3. No pair is
 // stored: density, forces and the Shepard filter walk the ranges directly, each particle's sum by
 // one thread in a fixed order (columns west to east, rows bottom to top, ids within a cell, and a
-// fixed 8-lane split of the in-range candidates so ordered, or of each range for Shepard). The
-// result therefore does not depend on the thread count, the rank count, or where the arrays sit
-// in memory.
+// fixed 16-lane split of the in-range candidates so ordered, or an 8-lane one of each range for
+// Shepard). The result therefore does not depend on the thread count, the rank count, or where
+// the arrays sit in memory.
 #include "sphperf/sph/config.hpp"
 #include "sphperf/sph/grid.hpp"
 #include "sphperf/sph/kernel.hpp"
@@ -210,7 +210,7 @@ struct PackedCandidates {
     std::vector<std::uint32_t, CacheLineAllocator<std::uint32_t>> index;
     std::vector<double, CacheLineAllocator<double>> dx, dy;
     std::size_t size = 0;       // packed candidates, without the padding
-    std::size_t padded = 0;     // with it: a multiple of the vector length
+    std::size_t padded = 0;     // with it: a multiple of the pair loops' 16 lanes
     std::uint64_t in_range = 0; // candidates within the support (with those at distance 0)
     std::uint64_t remote = 0;   // of those, the ones this rank does not own
 };
