@@ -332,8 +332,8 @@ constexpr double tiny = 1e-150;
 // AVX-512 vector of doubles. The packed pair loops: 16, two vectors' worth of independent pairs
 // in flight per iteration. Each pair's square root, division and kernel polynomial form a long
 // dependency chain and a particle's loop runs only 3-6 iterations, so the loops wait on latency:
-// in-process alternation (sph/NOTES.md, session 48) put 16 lanes at 0.88-0.97 of 8's time in
-// the density pass and 0.95-1.0 in the forces, 4 lanes at 1.19 and 32 at 1.04-1.14.
+// in-process alternation (sph/NOTES.md, session 48) put 16 lanes at 0.87-0.97 of 8's time in
+// the density pass and 0.93-1.01 in the forces; 4 lanes took 1.19, 32 1.04-1.14 (density).
 constexpr int lanes = 8;
 constexpr int pair_lanes = 16;
 
