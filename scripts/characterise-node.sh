@@ -80,7 +80,8 @@ if [ "$quick" -eq 1 ]; then # a smoke run: small sizes, seconds not minutes
     stream_args=(--size 2000000 --reps 3)
     dgemm_args=(--sizes 300 --reps 2 --probe-reps 1)
     pingpong_args=(--max-bytes 65536 --max-samples 50)
-    exchange_args=(--gaps-us 0,1000,10000 --payload-bytes 64,4096 --seconds-per-point 0.05)
+    exchange_args=(--gaps-us 0,1000,10000 --payload-bytes 64,4096 --seconds-per-point 0.02
+        --min-rounds 5)
     exchange_shared_args=("${exchange_args[@]}")
 fi
 
