@@ -104,7 +104,7 @@ fresh_exchange() {
 # needs the validation's simulated time (model/NOTES.md "Memory order"); a prediction they
 # cannot make from these runs is listed as such.
 if [ "$quick" -eq 1 ]; then
-    v_steps=100 v2_steps=20 vs_steps=40 c_steps=200 c35_steps=130 c7_steps=60 cs_steps=40 interval=20
+    v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c35_steps=130 c7_steps=60 cs_steps=40 interval=20
     c_interval=10
 else
     v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 c35_steps=920 c7_steps=300 cs_steps=300
