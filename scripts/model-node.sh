@@ -458,6 +458,8 @@ fi
 # Each repeated configuration's fastest run sets its setup's level (sessions 43-44) instead of
 # the level of all calibration runs pooled through the time profile.
 CAL_EXTRA="--run-level fastest-repeat" beside model_and_validate "$out/fastest-repeat" levelled-one-se froude
+# The calibration runs as measured, without the speed gauge's normalisation (sessions 1-49).
+CAL_EXTRA="--speed-gauge off" beside model_and_validate "$out/no-speed-gauge" levelled-one-se froude
 # The Froude-time profile as the moving ratio of sessions 16-41 instead of the robust quadratic.
 beside model_and_validate "$out/windowed-profile" levelled-one-se froude-windowed
 beside model_and_validate "$out/absolute-weights" levelled-one-se froude absolute

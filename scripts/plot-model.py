@@ -416,6 +416,27 @@ def markdown(model, validation, args, out):
     if s["wall_abs_error"]:
         lines.append(f"Total wall time |error|: median {100 * s['wall_abs_error']['median']:.1f} %, "
                      f"max {100 * s['wall_abs_error']['max']:.1f} % (targets 5 % and 10 %).")
+        gauge = model.get("speed_gauge") or {}
+        corrected = s.get("wall_abs_error_speed_corrected")
+        if gauge.get("applied"):
+            factors = [r["factor"] for r in gauge["runs"]]
+            line = (f"Speed gauge (sph --speed-gauge-every: a fixed piece of the density pass's "
+                    f"arithmetic timed on every thread every few steps, model/NOTES.md session 50): the "
+                    f"calibration runs ran at {min(factors):.2f}-{max(factors):.2f} times the median run's "
+                    f"gauge time (sd of ln {100 * gauge['log_sd']:.1f} %), and every time they measured is "
+                    f"divided by their factor, so the model is at one host speed.")
+            if corrected:
+                f = s["speed_factor"]
+                line += (f" The validation runs ran at {f['min']:.2f}-{f['max']:.2f} times it; at each "
+                         f"run's own host speed (the prediction times its factor) the wall |error| is "
+                         f"median {100 * corrected['median']:.1f} %, max {100 * corrected['max']:.1f} % over "
+                         f"{corrected['count']} configurations. That corrects for the host, not the model, and "
+                         f"uses what the run measured: the figures above are the prediction's. The band z and "
+                         f"the noise floor below are of this comparison (the band's scatter is of the "
+                         f"normalised calibration runs).")
+            lines.append(line)
+        elif gauge:
+            lines.append(f"Speed gauge not applied: {gauge.get('reason', '')}.")
         band = s.get("wall_band")
         scatter = model.get("level_scatter", {}).get("per_threads", [])
         if band and scatter:
@@ -505,6 +526,12 @@ def markdown(model, validation, args, out):
              "either way, so the rule stays (model/NOTES.md, session 46). With each "
              "repeated configuration's fastest run on "
              "the same runs: {o} (fastest-repeat/validation.json)."),
+            ((model.get("speed_gauge") or {}).get("applied", False),
+             "no-speed-gauge",
+             "Calibration runs put at one host speed by the speed gauge (calibrate --speed-gauge "
+             "normalise), chosen in session 50 from the gauge's agreement with repeated runs "
+             "(model/NOTES.md), before any validation ran with it: not tuned. Without it (the runs "
+             "as measured, sessions 1-49's model) on the same runs: {o} (no-speed-gauge/validation.json)."),
             (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
              "two-rounds",
              "Cell+Sorted calibrated on rounds a, b and c (a median run's level per setup then), "

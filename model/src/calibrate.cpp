@@ -1047,8 +1047,56 @@ json segment_shares(const std::vector<const SphRun *> &runs) {
 }
 } // namespace
 
-json calibrate(const json &header, const json &machine, const std::vector<SphRun> &runs,
+json speed_normalise(std::vector<SphRun> &runs, bool enabled) {
+    json out{{"applied", false}};
+    if (!enabled) {
+        out["reason"] = "calibrate --speed-gauge off";
+        return out;
+    }
+    std::vector<double> gauge;
+    for (const auto &r : runs) {
+        const double g = r.gauge_per_sample_s();
+        if (g <= 0) {
+            out["reason"] = "'" + r.path +
+                            "' has no speed-gauge samples (sph --speed-gauge-every 0, or a report "
+                            "from before session 50)";
+            return out;
+        }
+        gauge.push_back(g);
+    }
+    if (gauge.empty()) {
+        out["reason"] = "no runs";
+        return out;
+    }
+    const double reference = median(gauge);
+    json list = json::array();
+    std::vector<double> logs;
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        const double factor = gauge[i] / reference;
+        runs[i].scale_times(1 / factor);
+        logs.push_back(std::log(factor));
+        list.push_back(
+            {{"path", runs[i].path}, {"gauge_cpu_s_per_sample", gauge[i]}, {"factor", factor}});
+    }
+    const double mean = std::accumulate(logs.begin(), logs.end(), 0.0) / logs.size();
+    double ss = 0;
+    for (double l : logs)
+        ss += (l - mean) * (l - mean);
+    out = {{"applied", true},
+           {"reference_cpu_s_per_sample", reference},
+           {"method", "each run's speed-gauge CPU seconds per sample over the runs' median is "
+                      "the host's speed factor during the run; every time the run measured is "
+                      "divided by it, so the model is at the median run's speed"},
+           {"log_sd", logs.size() > 1 ? std::sqrt(ss / static_cast<double>(logs.size() - 1)) : 0.0},
+           {"runs", list}};
+    return out;
+}
+
+json calibrate(const json &header, const json &machine, const std::vector<SphRun> &measured,
                const CalibrateOptions &opt) {
+    // Every time below at the gauge's reference speed where the runs carry it.
+    std::vector<SphRun> runs = measured;
+    const json speed_gauge = speed_normalise(runs, opt.speed_gauge);
     if (runs.empty())
         throw UsageError("calibrate needs at least one SPH report (--runs)");
     const std::string host = machine.value("host", "");
@@ -1125,6 +1173,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     if (machine.contains("exchange"))
         model["machine"]["exchange"] = machine.at("exchange");
     model["calibration_runs"] = sources;
+    model["speed_gauge"] = speed_gauge;
     model["record_bytes"] = record_bytes;
     // The thesis' laws, per setup (a still tank packs its particles differently from a
     // collapsing dam) and pooled; interactions (ordered pairs acting on an owned particle)
@@ -1183,7 +1232,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     for (const auto &[grid, pts] : by_grid)
         moves[grid] = cell_move_fit(pts);
     model["cell_moves"] = moves;
-    model["roofline"] = roofline(machine, runs);
+    model["roofline"] = roofline(machine, measured); // the runs' own speed
     model["memory"] = memory_model(runs);
     model["traces"] = traces;
     model["disorder"] = disorder_by_setup(own_cores);

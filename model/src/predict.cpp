@@ -783,6 +783,12 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                          0)
                             .source},
                  {"wall_s", wall},
+                 // The host speed the prediction is at (calibrate's speed gauge; null: the
+                 // calibration runs as measured).
+                 {"speed_gauge_reference_cpu_s",
+                  model.contains("speed_gauge") && model["speed_gauge"].value("applied", false)
+                      ? model["speed_gauge"]["reference_cpu_s_per_sample"]
+                      : json(nullptr)},
                  {"wall_band", wall_band(model, req.threads, wall)},
                  {"totals",
                   {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},

@@ -52,6 +52,8 @@ void from_json(const json &j, RankStats &r) {
     r.overlap_s = j.contains("overlap_s") ? figure(j, "overlap_s") : 0.0;
     r.halo_comm_s = j.contains("halo_comm_s") ? figure(j, "halo_comm_s") : 0.0;
     r.probe_shift_s = j.contains("probe_shift_s") ? figure(j, "probe_shift_s") : 0.0;
+    r.gauge_cpu_s = j.contains("gauge_cpu_s") ? figure(j, "gauge_cpu_s") : 0.0;
+    r.gauge_samples = j.contains("gauge_samples") ? figure(j, "gauge_samples") : 0.0;
     r.hidden_predict_s =
         j.contains("comm_hidden_predict_s") ? figure(j, "comm_hidden_predict_s") : 0.0;
     if (j.contains("shifts"))
@@ -116,6 +118,33 @@ double RankStats::compute_s() const {
         if (k != "comm_s" && k != "wait_s" && k != "output_s" && k != "rebalance_s")
             s += v;
     return s;
+}
+
+double SphRun::gauge_per_sample_s() const {
+    double cpu = 0, samples = 0;
+    for (const auto &iv : intervals)
+        for (const auto &r : iv.ranks) {
+            cpu += r.gauge_cpu_s;
+            samples += r.gauge_samples;
+        }
+    return samples > 0 ? cpu / samples : 0.0;
+}
+
+void SphRun::scale_times(double factor) {
+    wall_s *= factor;
+    config.rebalance_s *= factor;
+    for (auto &iv : intervals)
+        for (auto &r : iv.ranks) {
+            for (auto &[k, v] : r.timers)
+                v *= factor;
+            r.idle_s *= factor;
+            r.overlap_s *= factor;
+            r.halo_comm_s *= factor;
+            r.gauge_cpu_s *= factor;
+            for (auto *a : {&r.shift_comm_s, &r.segment_cpu_s})
+                for (double &v : *a)
+                    v *= factor;
+        }
 }
 
 SphRun load_sph_run(const std::filesystem::path &path) {

@@ -22,6 +22,7 @@ struct Options {
     std::string time_profile = "froude";
     std::string fit_weights = "relative";
     std::string run_level = "pooled";
+    std::string speed_gauge = "normalise";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -74,6 +75,12 @@ int run(int argc, char **argv) {
                     "shape only: sessions 43-44) or median (the median run, the same profile)")
         ->capture_default_str()
         ->check(cli::IsMember({"fastest-repeat", "median", "pooled"}));
+    cal->add_option("--speed-gauge", o.speed_gauge,
+                    "normalise (each run's times divided by its speed gauge over the runs' "
+                    "median: the host's speed during the run, sph --speed-gauge-every; applied "
+                    "when every run carries it) or off (the runs as measured, sessions 1-49)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"normalise", "off"}));
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
@@ -180,7 +187,8 @@ int run(int argc, char **argv) {
                        o.fit_weights == "relative" ? FitWeights::relative : FitWeights::absolute,
                        o.run_level == "fastest-repeat" ? RunLevelRule::fastest_repeat
                        : o.run_level == "median"       ? RunLevelRule::median
-                                                       : RunLevelRule::pooled});
+                                                       : RunLevelRule::pooled,
+                       o.speed_gauge == "normalise"});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

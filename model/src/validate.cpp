@@ -135,6 +135,8 @@ json validate(const json &header, const std::vector<json> &predictions,
     json rows = json::array(), unmatched = json::array();
     std::vector<double> band_z;  // |ln(measured / predicted)| / the band's standard deviation
     std::vector<double> band_sd; // the band's standard deviation of ln(time), per configuration
+    // |error| against the prediction at the run's own host speed (the speed gauge's factor)
+    std::vector<double> corrected_errors, speed_factors;
     std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors,
         memory_errors;
     // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
@@ -287,49 +289,72 @@ json validate(const json &header, const std::vector<json> &predictions,
         if (onset.is_null())
             onset = {{"measured_step", nullptr}, {"measured_after_step", m.config.steps}};
         onset["predicted_step"] = p->value("first_step_all_ranks_busy", json(nullptr));
-        const double err = rel(p->at("wall_s").get<double>(), m.wall_s);
+        const double predicted_wall = p->at("wall_s").get<double>();
+        const double err = rel(predicted_wall, m.wall_s);
         wall_errors.push_back(std::abs(err));
+        // The host's speed during this run against the calibration's reference (both from the
+        // speed gauge): the prediction at the run's own speed, a diagnostic of how much of the
+        // error was the host's. The band, whose scatter is of speed-normalised calibration
+        // runs, is checked against it where the run carries the gauge.
+        const double reference = p->contains("speed_gauge_reference_cpu_s") &&
+                                         p->at("speed_gauge_reference_cpu_s").is_number()
+                                     ? p->at("speed_gauge_reference_cpu_s").get<double>()
+                                     : 0.0;
+        const double gauge = m.gauge_per_sample_s();
+        const double speed = reference > 0 && gauge > 0 ? gauge / reference : 0.0;
+        json speed_row = nullptr;
+        if (speed > 0) {
+            const double at_speed = predicted_wall * speed;
+            corrected_errors.push_back(std::abs(rel(at_speed, m.wall_s)));
+            speed_factors.push_back(speed);
+            speed_row = {{"gauge_cpu_s_per_sample", gauge},
+                         {"reference_cpu_s_per_sample", reference},
+                         {"factor", speed},
+                         {"predicted_wall_s_at_run_speed", at_speed},
+                         {"wall_error", rel(at_speed, m.wall_s)}};
+        }
         if (opt.max_error && std::abs(err) > *opt.max_error)
             exceeded = true;
-        json row{
-            {"run", m.path},
-            {"setup", m.config.setup},
-            {"grid", m.config.grid},
-            {"scale", m.config.scale},
-            {"delta", m.config.delta},
-            {"ranks", P},
-            {"threads", m.config.threads},
-            {"nodes", m.config.nodes},
-            {"decomposition", m.config.decomposition},
-            {"overlap", m.config.overlap},
-            {"steps", m.config.steps},
-            {"measured_rebalance_s", m.config.rebalance_s},
-            {"predicted_rebalance_s", p->value("rebalance_s", 0.0)},
-            {"oversubscribed", p->at("oversubscribed")},
-            {"measured_wall_s", m.wall_s},
-            {"predicted_wall_s", p->at("wall_s")},
-            {"wall_error", err},
-            {"wall_band", band_check(p->value("wall_band", json(nullptr)),
-                                     p->at("wall_s").get<double>(), m.wall_s, band_z, band_sd)},
-            {"first_step_all_ranks_busy", onset},
-            {"phases",
-             {{"compute", phase("compute_s", compute)},
-              {"comm", comm_phase},
-              {"wait", phase("wait_s", wait)},
-              {"idle", phase("idle_s", idle)}}},
-            {"pairs_per_step",
-             {{"counted", pairs / steps},
-              {"predicted", p_pairs},
-              {"error", rel(p_pairs, pairs / steps)},
-              {"predicted_regression", p_pairs_reg},
-              {"error_regression", rel(p_pairs_reg, pairs / steps)}}},
-            {"exported_per_step",
-             {{"counted", exported / steps},
-              {"predicted_edge_columns", p_exp},
-              {"error_edge_columns", rel(p_exp, exported / steps)},
-              {"predicted_regression", p_exp_reg},
-              {"error_regression", rel(p_exp_reg, exported / steps)}}},
-            {"comm_series", series}};
+        json row{{"run", m.path},
+                 {"setup", m.config.setup},
+                 {"grid", m.config.grid},
+                 {"scale", m.config.scale},
+                 {"delta", m.config.delta},
+                 {"ranks", P},
+                 {"threads", m.config.threads},
+                 {"nodes", m.config.nodes},
+                 {"decomposition", m.config.decomposition},
+                 {"overlap", m.config.overlap},
+                 {"steps", m.config.steps},
+                 {"measured_rebalance_s", m.config.rebalance_s},
+                 {"predicted_rebalance_s", p->value("rebalance_s", 0.0)},
+                 {"oversubscribed", p->at("oversubscribed")},
+                 {"measured_wall_s", m.wall_s},
+                 {"predicted_wall_s", p->at("wall_s")},
+                 {"wall_error", err},
+                 {"speed_gauge", speed_row},
+                 {"wall_band", band_check(p->value("wall_band", json(nullptr)),
+                                          speed > 0 ? predicted_wall * speed : predicted_wall,
+                                          m.wall_s, band_z, band_sd)},
+                 {"first_step_all_ranks_busy", onset},
+                 {"phases",
+                  {{"compute", phase("compute_s", compute)},
+                   {"comm", comm_phase},
+                   {"wait", phase("wait_s", wait)},
+                   {"idle", phase("idle_s", idle)}}},
+                 {"pairs_per_step",
+                  {{"counted", pairs / steps},
+                   {"predicted", p_pairs},
+                   {"error", rel(p_pairs, pairs / steps)},
+                   {"predicted_regression", p_pairs_reg},
+                   {"error_regression", rel(p_pairs_reg, pairs / steps)}}},
+                 {"exported_per_step",
+                  {{"counted", exported / steps},
+                   {"predicted_edge_columns", p_exp},
+                   {"error_edge_columns", rel(p_exp, exported / steps)},
+                   {"predicted_regression", p_exp_reg},
+                   {"error_regression", rel(p_exp_reg, exported / steps)}}},
+                 {"comm_series", series}};
         // Peak RSS of the largest rank, against the memory model and the thesis' bound.
         if (p->contains("memory") && !p->at("memory").is_null() && !m.peak_rss_bytes.empty()) {
             const auto &pm = p->at("memory");
@@ -367,6 +392,13 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
         {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
         {"peak_rss_abs_error", summary(memory_errors)},
+        {"wall_abs_error_speed_corrected", summary(corrected_errors)},
+        {"speed_factor",
+         speed_factors.empty()
+             ? json(nullptr)
+             : json{{"min", *std::min_element(speed_factors.begin(), speed_factors.end())},
+                    {"median", median(speed_factors)},
+                    {"max", *std::max_element(speed_factors.begin(), speed_factors.end())}}},
         {"wall_band", band_summary(band_z)},
         {"wall_noise_floor", noise_floor_json(band_sd)},
         {"max_error", opt.max_error ? json(*opt.max_error) : json(nullptr)},
@@ -530,6 +562,14 @@ std::string validation_table(const json &v) {
                  100 * d(sm.at("wall_abs_error").at("median")),
                  100 * d(sm.at("wall_abs_error").at("max")),
                  sm.at("wall_abs_error").at("count").get<std::size_t>());
+    if (sm.contains("wall_abs_error_speed_corrected") &&
+        !sm.at("wall_abs_error_speed_corrected").is_null())
+        s += fmt("  at each run's own host speed (speed gauge, factors %.2f-%.2f): wall time "
+                 "|error| median %.1f%%, max %.1f%% over %zu configurations\n",
+                 d(sm.at("speed_factor").at("min")), d(sm.at("speed_factor").at("max")),
+                 100 * d(sm.at("wall_abs_error_speed_corrected").at("median")),
+                 100 * d(sm.at("wall_abs_error_speed_corrected").at("max")),
+                 sm.at("wall_abs_error_speed_corrected").at("count").get<std::size_t>());
     if (sm.contains("wall_band") && !sm.at("wall_band").is_null())
         s += fmt("  measured within the prediction's band (+-%g sd of the calibration runs' "
                  "scatter): %lld of %zu, median |z| %.2f\n",

@@ -125,6 +125,13 @@ Config parse(int argc, char **argv) {
                    "results are the same; measured slower on this problem, see sph/NOTES.md)")
         ->capture_default_str()
         ->check(cli::Range(0, 1 << 30));
+    app.add_option("--speed-gauge-every", cfg.speed_gauge_every,
+                   "Steps between samples of the speed gauge, a fixed piece of the density "
+                   "pass's arithmetic on every thread that measures how fast the host runs "
+                   "during the run (gauge_cpu_s per interval and rank; about 60 us a sample "
+                   "here; 0: none)")
+        ->capture_default_str()
+        ->check(cli::Range(0, 1 << 30));
     app.add_flag("--quiet", cfg.quiet, "No progress line");
     parse_cli(app, argc, argv);
 

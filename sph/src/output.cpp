@@ -236,6 +236,8 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"comm_hidden_predict_s", r.hidden_predict_s},
                               {"halo_comm_s", r.halo_comm_s()},
                               {"probe_shift_s", r.probe_shift_s},
+                              {"gauge_cpu_s", r.gauge_cpu_s},
+                              {"gauge_samples", r.gauge_samples},
                               {"descents", r.descents},
                               {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)

@@ -90,7 +90,16 @@ struct CalibrateOptions {
     TimeProfile time_profile = TimeProfile::froude;
     FitWeights fit_weights = FitWeights::relative;
     RunLevelRule run_level = RunLevelRule::pooled;
+    // Put every calibration run at one host speed by its speed gauge (speed_normalise).
+    bool speed_gauge = true;
 };
+// The speed gauge's normalisation (session 50): each run's gauge CPU seconds per sample over
+// the runs' median is the host's speed factor during that run, and every time the run measured
+// is divided by it, so the fit sees the runs at one speed (the median run's). Applied only when
+// `enabled` and every run carries gauge samples; returns {"applied", "reason" or
+// "reference_cpu_s_per_sample", "runs": [{path, gauge_cpu_s_per_sample, factor}],
+// "log_sd" (standard deviation of ln factor)}.
+nlohmann::json speed_normalise(std::vector<SphRun> &runs, bool enabled);
 nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
 // The Froude-time profile of one compute entry (a fit of one grid and thread count, with its

@@ -25,6 +25,9 @@ struct RankStats {
     double overlap_s = 0, hidden_predict_s = 0;
     double halo_comm_s = 0;   // comm_s of the ghost and density exchanges (0 in older reports)
     double probe_shift_s = 0; // the latency probe at the interval's end (0: none, older reports)
+    // The speed gauge (sph/include/sphperf/sph/gauge.hpp): CPU seconds of its samples, total,
+    // and how many (0: none, older reports or --speed-gauge-every 0)
+    double gauge_cpu_s = 0, gauge_samples = 0;
     std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
     // comm_s and comm_predict_s by exchange (sph::shift_keys); older reports: zeros
     sph::ShiftTimes shift_comm_s{}, shift_predict_s{};
@@ -67,6 +70,13 @@ struct SphRun {
     std::vector<int> placement_pus;
     // The machine profile's figure for the latency probe (0: the run did not probe).
     double profile_probe_shift_s = 0;
+
+    // The speed gauge's CPU seconds per sample over the whole run, all ranks (0: no samples).
+    double gauge_per_sample_s() const;
+    // Every time the run measured (wall, timers, idle, transfers, CPU segments), times
+    // `factor`: the run as it would have measured on a host `factor` times slower. Predictions
+    // the run recorded (comm_predict_s ...) and the latency probe are left as they are.
+    void scale_times(double factor);
 };
 
 SphRun load_sph_run(const std::filesystem::path &path);

@@ -126,8 +126,9 @@ struct Config {
     int rebalance_every = 0;                         // steps; 0: the report interval
     std::optional<std::filesystem::path> cost_model; // model.json for cost-aware cuts
     BalanceWeights balance;
-    bool overlap = false;  // non-blocking ghost exchanges behind the interior columns (sorted)
-    int reorder_every = 0; // steps between permuting the particles into cell order; 0: never
+    bool overlap = false;       // non-blocking ghost exchanges behind the interior columns (sorted)
+    int reorder_every = 0;      // steps between permuting the particles into cell order; 0: never
+    int speed_gauge_every = 10; // steps between samples of the speed gauge (gauge.hpp); 0: none
     Physics physics;
 
     std::int64_t total_steps() const;

@@ -39,6 +39,8 @@ struct RankInterval {
     double overlap_s = 0;        // --overlap: compute run while ghost transfers were in flight
     double hidden_predict_s = 0; // ... and the predicted transfer time it hid (T_overlap)
     double probe_shift_s = 0;    // the latency probe at the interval's end (Domain), 0: none
+    double gauge_cpu_s = 0;      // the speed gauge's samples (gauge.hpp): CPU seconds, total
+    double gauge_samples = 0;    // ... and how many
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
     ShiftTimes shift_comm_s{};    // comm_s split by exchange (migration, ghosts, densities)
     ShiftTimes shift_predict_s{}; // comm_predict_s split the same way
@@ -51,7 +53,7 @@ struct RankInterval {
     }
 
     static constexpr std::size_t fields =
-        23 + static_cast<std::size_t>(Phase::count) + 4 * static_cast<std::size_t>(Shift::count);
+        25 + static_cast<std::size_t>(Phase::count) + 4 * static_cast<std::size_t>(Shift::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

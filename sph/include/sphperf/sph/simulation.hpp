@@ -4,6 +4,7 @@
 #include "sphperf/sph/checkpoint.hpp"
 #include "sphperf/sph/config.hpp"
 #include "sphperf/sph/domain.hpp"
+#include "sphperf/sph/gauge.hpp"
 #include "sphperf/sph/grid.hpp"
 #include "sphperf/sph/integrator.hpp"
 #include "sphperf/sph/output.hpp"
@@ -90,6 +91,7 @@ private:
     typename Grid::Neighbours nb_; // the grid's own neighbourhood type
     PhaseTimers step_timers_, total_timers_;
     RankInterval acc_;
+    SpeedGauge gauge_;
     std::size_t last_mirrors_ = 0, last_ghosts_ = 0, last_exported_ = 0, last_migrated_ = 0;
     std::int64_t first_mirror_id_ = 0;
     std::vector<std::uint32_t> mirror_sources_;
@@ -640,6 +642,11 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
     dom_.barrier();
     const double start = wall_seconds();
     for (std::int64_t s = first + 1; s <= steps; ++s) {
+        if (cfg_.speed_gauge_every > 0 && s % cfg_.speed_gauge_every == 0) {
+            ScopedPhase t(step_timers_, Phase::gauge);
+            acc_.gauge_cpu_s += gauge_.sample();
+            acc_.gauge_samples += 1;
+        }
         const double t0 = wall_seconds();
         step(s);
         if (cfg_.physics.shepard_every > 0 && s % cfg_.physics.shepard_every == 0) {

@@ -23,12 +23,13 @@ enum class Phase : std::size_t {
     output,
     idsort,    // Cell+List / Cell+Table: ordering each neighbour list by id (not grid cost)
     rebalance, // balanced slabs: the re-cut and its migrations, all in one (no other phase)
+    gauge,     // the speed gauge (gauge.hpp), every --speed-gauge-every steps
     count
 };
 
 inline constexpr std::array<std::string_view, static_cast<std::size_t>(Phase::count)> phase_keys{
-    "pairs_s",    "grid_s",      "comp_s",   "comm_s",   "wait_s",     "pack_s",
-    "boundary_s", "integrate_s", "output_s", "idsort_s", "rebalance_s"};
+    "pairs_s",    "grid_s",      "comp_s",   "comm_s",   "wait_s",      "pack_s",
+    "boundary_s", "integrate_s", "output_s", "idsort_s", "rebalance_s", "gauge_s"};
 
 // The comm phase by exchange, in the order of a step: the transfers of each are predicted and
 // validated apart, since what a shift costs on one node depends on what ran before it.
