@@ -1078,6 +1078,9 @@ INSTANTIATE_TEST_SUITE_P(
                       "--nodes"},
         BadModelInput{"unknown_run_level",
                       "calibrate --machine MACHINE --runs RUN --run-level luckiest", "luckiest"},
+        BadModelInput{"unknown_speed_gauge",
+                      "calibrate --machine MACHINE --runs RUN --speed-gauge sometimes",
+                      "sometimes"},
         BadModelInput{"negative_max_error",
                       "validate --max-error -1 --prediction MODEL --measured RUN", "-1"}),
     [](const auto &info) { return std::string(info.param.name); });

@@ -202,6 +202,14 @@ TEST(SphCli, ReportCarriesTheDocumentedFields) {
     EXPECT_GT(j["intervals"][0]["ranks"][1]["idle_s"].get<double>(), 0);
     EXPECT_TRUE(fs::exists(snap / "sph.pvd"));
     EXPECT_TRUE(fs::exists(snap / "sph_000002_r001.vtu"));
+    // The speed gauge samples every 10 steps by default: once per interval of 10 on every rank,
+    // timed in its own phase.
+    for (const auto &iv : j["intervals"])
+        for (const auto &r : iv["ranks"]) {
+            EXPECT_EQ(r["gauge_samples"].get<double>(), 1.0);
+            EXPECT_GT(r["gauge_cpu_s"].get<double>(), 0.0);
+            EXPECT_GE(r["timers"]["gauge_s"].get<double>(), 0.0);
+        }
 }
 
 class WaterColumn : public ::testing::TestWithParam<std::string> {};
@@ -264,6 +272,8 @@ INSTANTIATE_TEST_SUITE_P(
                     "--reorder-every needs --grid sorted"},
         SphBadInput{"reorder_negative", "--reorder-every -1 --grid sorted --steps 1",
                     "--reorder-every"},
+        SphBadInput{"speed_gauge_negative", "--speed-gauge-every -3 --steps 1",
+                    "--speed-gauge-every"},
         SphBadInput{"rebalance_zero", "--decomposition balanced --rebalance-every 0 --steps 1",
                     "--rebalance-every: Value 0"},
         SphBadInput{"wall_weight_negative", "--decomposition balanced --wall-weight -1 --steps 1",

@@ -958,6 +958,82 @@ TEST(Validate, FlagsAPlantedTwentyPercentError) {
     EXPECT_EQ(v["unmatched_runs"].size(), 1u);
 }
 
+// The speed gauge (session 50): a run measured on a host 1.3 times slower, its gauge 1.3 times
+// slower too, is predicted 20 % high at the reference speed: 1.2 / 1.3 - 1 = -7.7 % at its own
+// speed. The band is checked at the run's speed; a run without gauge samples, or a prediction
+// without a reference, gets no correction.
+TEST(Validate, ReportsTheErrorAtTheRunsOwnHostSpeed) {
+    auto p = prediction(1.2);
+    p["configurations"][0]["speed_gauge_reference_cpu_s"] = 50e-6;
+    p["configurations"][0]["wall_band"] = {
+        {"log_sd", 0.05}, {"dof", 10}, {"sds", 2}, {"low_s", 1.0}, {"high_s", 1.4}};
+    auto slow = measured_run(1.0);
+    slow.intervals[0].ranks[0].gauge_cpu_s = 10 * 65e-6;
+    slow.intervals[0].ranks[0].gauge_samples = 10;
+    bool exceeded = false;
+    auto v = validate({}, {p}, {slow}, {}, exceeded);
+    const auto &c = v["configurations"][0];
+    EXPECT_NEAR(c["wall_error"].get<double>(), 0.2, 1e-12); // the prediction's own error
+    EXPECT_NEAR(c["speed_gauge"]["factor"].get<double>(), 1.3, 1e-12);
+    EXPECT_NEAR(c["speed_gauge"]["wall_error"].get<double>(), 1.2 * 1.3 - 1, 1e-12);
+    EXPECT_NEAR(c["wall_band"]["z"].get<double>(), std::log(1.0 / (1.2 * 1.3)) / 0.05, 1e-9);
+    EXPECT_NEAR(v["summary"]["wall_abs_error_speed_corrected"]["max"].get<double>(), 1.2 * 1.3 - 1,
+                1e-12);
+    EXPECT_NEAR(v["summary"]["speed_factor"]["median"].get<double>(), 1.3, 1e-12);
+    // No samples in the run: no correction, and the band at the prediction itself.
+    v = validate({}, {p}, {measured_run(1.0)}, {}, exceeded);
+    EXPECT_TRUE(v["configurations"][0]["speed_gauge"].is_null());
+    EXPECT_TRUE(v["summary"]["wall_abs_error_speed_corrected"].is_null());
+    EXPECT_NEAR(v["configurations"][0]["wall_band"]["z"].get<double>(), std::log(1.0 / 1.2) / 0.05,
+                1e-9);
+    // No reference in the prediction (a model calibrated with --speed-gauge off): none either.
+    v = validate({}, {prediction(1.2)}, {slow}, {}, exceeded);
+    EXPECT_TRUE(v["configurations"][0]["speed_gauge"].is_null());
+}
+
+// Calibration runs at one host speed: two runs of the same work, one on a host 1.5 times
+// slower (every time it measured and its gauge 1.5 times the other's), come out equal at the
+// median run's speed; what the runs predicted (comm_predict_s) is left alone. A run without
+// gauge samples, or --speed-gauge off, leaves every run as measured and says why.
+TEST(Calibrate, SpeedGaugePutsTheRunsAtOneHostSpeed) {
+    auto run = [](double slow) {
+        SphRun r = measured_run(2.0 * slow);
+        auto &rk = r.intervals[0].ranks[0];
+        for (auto &[k, v] : rk.timers)
+            v = (k == "comm_s" ? 0.1 : 0.5) * slow;
+        rk.idle_s = 0.2 * slow;
+        rk.shift_comm_s = {0.01 * slow, 0.02 * slow, 0.03 * slow};
+        rk.comm_predict_s = 0.05;
+        rk.gauge_cpu_s = 20 * 40e-6 * slow;
+        rk.gauge_samples = 20;
+        return r;
+    };
+    std::vector<SphRun> runs{run(1.0), run(1.5), run(1.5)};
+    const auto j = speed_normalise(runs, true);
+    ASSERT_TRUE(j["applied"].get<bool>());
+    EXPECT_NEAR(j["reference_cpu_s_per_sample"].get<double>(), 60e-6, 1e-15);
+    EXPECT_NEAR(j["runs"][0]["factor"].get<double>(), 1 / 1.5, 1e-12);
+    for (const auto &r : runs) {
+        EXPECT_NEAR(r.wall_s, 3.0, 1e-12);
+        const auto &rk = r.intervals[0].ranks[0];
+        EXPECT_NEAR(rk.timer("pairs_s"), 0.75, 1e-12);
+        EXPECT_NEAR(rk.timer("comm_s"), 0.15, 1e-12);
+        EXPECT_NEAR(rk.idle_s, 0.3, 1e-12);
+        EXPECT_NEAR(rk.shift_comm_s[2], 0.045, 1e-12);
+        EXPECT_NEAR(r.gauge_per_sample_s(), 60e-6, 1e-15);
+        EXPECT_DOUBLE_EQ(rk.comm_predict_s, 0.05);
+    }
+    EXPECT_GT(j["log_sd"].get<double>(), 0.2);
+    std::vector<SphRun> mixed{run(1.0), measured_run(2.0)};
+    const auto none = speed_normalise(mixed, true);
+    EXPECT_FALSE(none["applied"].get<bool>());
+    EXPECT_NE(none["reason"].get<std::string>().find("measured.json"), std::string::npos);
+    EXPECT_DOUBLE_EQ(mixed[0].wall_s, 2.0);
+    std::vector<SphRun> off{run(1.0), run(1.5)};
+    EXPECT_FALSE(speed_normalise(off, false)["applied"].get<bool>());
+    EXPECT_DOUBLE_EQ(off[1].wall_s, 3.0);
+}
+
 // A prediction's band (+-2 sd of ln(time)): with a 5 % scatter, a run 20 % faster than
 // predicted lies outside it (z = ln(1/1.2)/0.05 = -3.65), one 5 % slower inside (z = 0.98); a
 // prediction without a band is not counted.

@@ -1,6 +1,8 @@
 #include "sphperf/sph/config.hpp"
+#include "sphperf/sph/gauge.hpp"
 #include "sphperf/sph/kernel.hpp"
 #include "sphperf/sph/physics.hpp"
+#include "sphperf/sph/sorted.hpp"
 
 #include <gtest/gtest.h>
 
@@ -114,4 +116,44 @@ TEST(Geometry, ThesisParticleCountsAndRankLimits) {
     EXPECT_EQ(make_geometry(cfg).fluid_particles(), 19140);
     cfg.scale = 2;
     EXPECT_EQ(make_geometry(cfg).fluid_particles(), 641 * 120);
+}
+
+// The speed gauge's data is the same on every call (a fixed LCG), its separations inside the
+// support and away from 0, its indices in range; the kernel is the continuity pair term
+// m_j W'(r)/r (dv . r) at separations a time step back, summed: equal to a plain loop to rounding.
+TEST(SpeedGauge, KernelIsTheContinuityTermOnFixedData) {
+    using namespace sphperf::sph;
+    const auto d = make_gauge_data(100, 256);
+    const auto again = make_gauge_data(100, 256);
+    EXPECT_EQ(d.dx, again.dx);
+    EXPECT_EQ(d.index, again.index);
+    ASSERT_EQ(d.index.size(), 256u);
+    for (std::size_t q = 0; q < d.index.size(); ++q) {
+        const double r = std::hypot(d.dx[q], d.dy[q]);
+        EXPECT_GT(r, 0.29);
+        EXPECT_LT(r, 2.86);
+        EXPECT_LT(d.index[q], 100u);
+    }
+    double plain = 0;
+    for (std::size_t q = 0; q < 256; ++q) {
+        const std::size_t i = (q / 64 * 64) % 100; // each group of 64 pairs is one particle's
+        const std::uint32_t j = d.index[q];
+        const double dvx = d.vx[i] - d.vx[j], dvy = d.vy[i] - d.vy[j];
+        const double mx = d.dx[q] - 1e-4 * dvx, my = d.dy[q] - 1e-4 * dvy;
+        const double r = std::hypot(mx, my);
+        plain += d.mass[j] * BranchFreeKernel::slope(r) / r * (dvx * mx + dvy * my);
+    }
+    const double k = gauge_kernel(d.vx, d.vy, d.mass, d.index, d.dx, d.dy);
+    EXPECT_NEAR(k, plain, 1e-12 * std::abs(plain));
+    EXPECT_NE(k, 0.0);
+    // A sample runs it once untimed and `repeats` times timed, on every thread.
+    SpeedGauge gauge(256, 3);
+    EXPECT_EQ(gauge.pairs_per_sample(), 768u);
+    EXPECT_GT(gauge.sample(), 0.0);
+    const auto g = make_gauge_data(SpeedGauge::particles, 256);
+    const double one = gauge_kernel(g.vx, g.vy, g.mass, g.index, g.dx, g.dy);
+    double four = one;
+    for (int n = 0; n < 3; ++n)
+        four += one;
+    EXPECT_DOUBLE_EQ(gauge.checksum(), four);
 }
