@@ -1024,6 +1024,14 @@ TEST(Calibrate, SpeedGaugePutsTheRunsAtOneHostSpeed) {
         EXPECT_DOUBLE_EQ(rk.comm_predict_s, 0.05);
     }
     EXPECT_GT(j["log_sd"].get<double>(), 0.2);
+    // A rank that computes nothing (a dam break's far slab) does not set the run's speed.
+    SphRun two = run(1.0);
+    RankStats idle = two.intervals[0].ranks[0];
+    for (auto &[k, v] : idle.timers)
+        v = 0;
+    idle.gauge_cpu_s *= 3;
+    two.intervals[0].ranks.push_back(idle);
+    EXPECT_NEAR(two.gauge_per_sample_s(), 40e-6, 1e-15);
     std::vector<SphRun> mixed{run(1.0), measured_run(2.0)};
     const auto none = speed_normalise(mixed, true);
     EXPECT_FALSE(none["applied"].get<bool>());

@@ -71,7 +71,8 @@ struct SphRun {
     // The machine profile's figure for the latency probe (0: the run did not probe).
     double profile_probe_shift_s = 0;
 
-    // The speed gauge's CPU seconds per sample over the whole run, all ranks (0: no samples).
+    // The speed gauge's CPU seconds per sample over the whole run: each rank-interval's mean
+    // weighted by its compute (0: no samples).
     double gauge_per_sample_s() const;
     // Every time the run measured (wall, timers, idle, transfers, CPU segments), times
     // `factor`: the run as it would have measured on a host `factor` times slower. Predictions
