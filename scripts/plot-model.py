@@ -431,9 +431,12 @@ def markdown(model, validation, args, out):
                          f"run's own host speed (the prediction times its factor) the wall |error| is "
                          f"median {100 * corrected['median']:.1f} %, max {100 * corrected['max']:.1f} % over "
                          f"{corrected['count']} configurations. That corrects for the host, not the model, and "
-                         f"uses what the run measured: the figures above are the prediction's. The band z and "
-                         f"the noise floor below are of this comparison (the band's scatter is of the "
-                         f"normalised calibration runs).")
+                         f"uses what the run measured: the figures above are the prediction's.")
+            one = model.get("level_scatter_at_one_speed", {}).get("per_threads", [])
+            if one:
+                line += (" At one speed the calibration runs scatter about their setup's level by " +
+                         ", ".join(f"{100 * e['log_sd']:.1f} % at {e['threads']} thread(s)" for e in one) +
+                         " (the band below is of the runs as measured).")
             lines.append(line)
         elif gauge:
             lines.append(f"Speed gauge not applied: {gauge.get('reason', '')}.")

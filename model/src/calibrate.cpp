@@ -1224,7 +1224,31 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
                          std::to_string(cores) +
                          " cores: the compute cost needs at least one run within them");
     model["compute"] = compute;
-    model["level_scatter"] = pooled_level_scatter(compute);
+    // The band (predict: wall_band) is how far one run lands from a right prediction on this
+    // host as its runs are measured: with the gauge applied, each run's level factor carries
+    // its speed factor back in; the scatter at one speed is kept beside.
+    if (speed_gauge.value("applied", false)) {
+        std::map<std::string, double> speed;
+        std::map<std::string, std::string> setup_of;
+        for (const auto &g : speed_gauge.at("runs"))
+            speed[g.at("path").get<std::string>()] = g.at("factor").get<double>();
+        for (const auto &r : runs)
+            setup_of[r.path] = r.config.setup;
+        json as_measured = compute;
+        for (auto &c : as_measured) {
+            std::map<std::string, std::vector<double>> by_setup;
+            for (const auto &f : c.at("run_level").at("runs")) {
+                const auto path = f.at("run").get<std::string>();
+                by_setup[setup_of.at(path)].push_back(f.at("factor").get<double>() *
+                                                      speed.at(path));
+            }
+            c["run_level"]["scatter"] = scatter_json(level_scatter(by_setup));
+        }
+        model["level_scatter"] = pooled_level_scatter(as_measured);
+        model["level_scatter_at_one_speed"] = pooled_level_scatter(compute);
+    } else {
+        model["level_scatter"] = pooled_level_scatter(compute);
+    }
     model["time_sharing"] = time_sharing(runs, compute, cores);
     if (json j = jitter(runs, compute, cores); !j.is_null())
         model["jitter"] = j;

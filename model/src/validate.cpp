@@ -294,8 +294,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         wall_errors.push_back(std::abs(err));
         // The host's speed during this run against the calibration's reference (both from the
         // speed gauge): the prediction at the run's own speed, a diagnostic of how much of the
-        // error was the host's. The band, whose scatter is of speed-normalised calibration
-        // runs, is checked against it where the run carries the gauge.
+        // error was the host's.
         const double reference = p->contains("speed_gauge_reference_cpu_s") &&
                                          p->at("speed_gauge_reference_cpu_s").is_number()
                                      ? p->at("speed_gauge_reference_cpu_s").get<double>()
@@ -333,8 +332,7 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"predicted_wall_s", p->at("wall_s")},
                  {"wall_error", err},
                  {"speed_gauge", speed_row},
-                 {"wall_band", band_check(p->value("wall_band", json(nullptr)),
-                                          speed > 0 ? predicted_wall * speed : predicted_wall,
+                 {"wall_band", band_check(p->value("wall_band", json(nullptr)), predicted_wall,
                                           m.wall_s, band_z, band_sd)},
                  {"first_step_all_ranks_busy", onset},
                  {"phases",
