@@ -150,18 +150,31 @@ TEST(ModelCli, CalibratePredictValidate) {
         EXPECT_TRUE(c.contains(nlohmann::json::json_pointer("/run_level/per_setup/dambreak")));
     }
     // The calibration runs' scatter about their setup's level, pooled per thread count (session
-    // 44): two dam breaks, one degree of freedom, so |ln(f1 / f2)| / sqrt(2).
+    // 44): two dam breaks, one degree of freedom, so |ln(f1 / f2)| / sqrt(2). The fit is at one
+    // host speed (the speed gauge, session 50); the band's scatter is of the runs as measured,
+    // each level factor times the run's speed factor, the one at one speed kept beside.
     ASSERT_EQ(m["compute"].size(), 1u);
+    ASSERT_TRUE(m["speed_gauge"]["applied"].get<bool>());
+    std::map<std::string, double> speed;
+    for (const auto &g : m["speed_gauge"]["runs"])
+        speed[g["path"].get<std::string>()] = g["factor"].get<double>();
     ASSERT_EQ(m["level_scatter"]["per_threads"].size(), 1u);
     const auto &scatter = m["level_scatter"]["per_threads"][0];
     const auto &factors = m["compute"][0]["run_level"]["runs"];
     ASSERT_EQ(factors.size(), 2u);
     EXPECT_EQ(scatter["threads"], 1);
     EXPECT_EQ(scatter["dof"], 1);
-    const double log_sd = std::abs(std::log(factors[0]["factor"].get<double>() /
-                                            factors[1]["factor"].get<double>())) /
-                          std::sqrt(2.0);
+    auto measured = [&](const nlohmann::json &f) {
+        return f["factor"].get<double>() * speed.at(f["run"].get<std::string>());
+    };
+    const double log_sd =
+        std::abs(std::log(measured(factors[0]) / measured(factors[1]))) / std::sqrt(2.0);
     EXPECT_NEAR(scatter["log_sd"].get<double>(), log_sd, 1e-12);
+    EXPECT_NEAR(m["level_scatter_at_one_speed"]["per_threads"][0]["log_sd"].get<double>(),
+                std::abs(std::log(factors[0]["factor"].get<double>() /
+                                  factors[1]["factor"].get<double>())) /
+                    std::sqrt(2.0),
+                1e-12);
     ASSERT_EQ(m["time_sharing"].size(), 1u);
     EXPECT_DOUBLE_EQ(m["time_sharing"][0]["load"].get<double>(), 1.5);
     ASSERT_EQ(m["time_sharing"][0]["runs"].size(), 1u);
