@@ -1147,8 +1147,9 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
             traces[key] = t.to_json();
             traces[key]["end_time_s"] = t.end_time();
         }
+        // As measured (the fit's copy may be at the gauge's reference speed).
         double cost = 0;
-        for (const auto &iv : r.intervals)
+        for (const auto &iv : measured[i].intervals)
             for (const auto &rk : iv.ranks)
                 cost += rk.compute_s();
         sources.push_back({{"path", r.path},
@@ -1159,7 +1160,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
                            {"ranks", r.config.ranks},
                            {"threads", r.config.threads},
                            {"steps", r.config.steps},
-                           {"wall_s", r.wall_s},
+                           {"wall_s", measured[i].wall_s},
                            {"cpu_s", cost},
                            {"git_commit", r.git_commit}});
     }
