@@ -460,6 +460,8 @@ fi
 CAL_EXTRA="--run-level fastest-repeat" beside model_and_validate "$out/fastest-repeat" levelled-one-se froude
 # The calibration runs as measured, without the speed gauge's normalisation (sessions 1-49).
 CAL_EXTRA="--speed-gauge off" beside model_and_validate "$out/no-speed-gauge" levelled-one-se froude
+# One speed factor per calibration run (session 50) instead of one per interval (session 51).
+CAL_EXTRA="--speed-gauge run" beside model_and_validate "$out/run-speed-gauge" levelled-one-se froude
 # The Froude-time profile as the moving ratio of sessions 16-41 instead of the robust quadratic.
 beside model_and_validate "$out/windowed-profile" levelled-one-se froude-windowed
 beside model_and_validate "$out/absolute-weights" levelled-one-se froude absolute

@@ -420,11 +420,15 @@ def markdown(model, validation, args, out):
         corrected = s.get("wall_abs_error_speed_corrected")
         if gauge.get("applied"):
             factors = [r["factor"] for r in gauge["runs"]]
+            per_interval = gauge.get("mode") == "interval"
             line = (f"Speed gauge (sph --speed-gauge-every: a fixed piece of the density pass's "
-                    f"arithmetic timed on every thread every few steps, model/NOTES.md session 50): the "
+                    f"arithmetic timed on every thread every few steps, model/NOTES.md sessions 50-51): the "
                     f"calibration runs ran at {min(factors):.2f}-{max(factors):.2f} times the median run's "
                     f"gauge time (sd of ln {100 * gauge['log_sd']:.1f} %), and every time they measured is "
-                    f"divided by their factor, so the model is at one host speed.")
+                    + ("divided by the factor of the gauge around it (each interval's, pooled over +-1 "
+                       "interval: calibrate --speed-gauge interval)" if per_interval else
+                       "divided by their run's factor (calibrate --speed-gauge run)")
+                    + ", so the model is at one host speed.")
             if corrected:
                 f = s["speed_factor"]
                 line += (f" The validation runs ran at {f['min']:.2f}-{f['max']:.2f} times it; at each "
@@ -531,10 +535,20 @@ def markdown(model, validation, args, out):
              "the same runs: {o} (fastest-repeat/validation.json)."),
             ((model.get("speed_gauge") or {}).get("applied", False),
              "no-speed-gauge",
-             "Calibration runs put at one host speed by the speed gauge (calibrate --speed-gauge "
-             "normalise), chosen in session 50 from the gauge's agreement with repeated runs "
-             "(model/NOTES.md), before any validation ran with it: not tuned. Without it (the runs "
-             "as measured, sessions 1-49's model) on the same runs: {o} (no-speed-gauge/validation.json)."),
+             "Calibration runs put at one host speed by the speed gauge, chosen in session 50 from "
+             "the gauge's agreement with repeated runs (model/NOTES.md), before any validation ran "
+             "with it: not tuned. Without it (the runs as measured, sessions 1-49's model) on the "
+             "same runs: {o} (no-speed-gauge/validation.json)."),
+            ((model.get("speed_gauge") or {}).get("mode") == "interval",
+             "run-speed-gauge",
+             "The gauge applied per interval (calibrate --speed-gauge interval: each interval's "
+             "gauge pooled over +-1 interval), chosen in session 51 from the calibration runs "
+             "alone (between repeated rounds of a configuration the cost's shape over the run "
+             "differed by 11.1 % with one factor per run, 7.8 % per interval; model/NOTES.md) and "
+             "then replayed on two main jobs' runs (median / max 6.9 / 26.9 and 13.7 / 32.7 % per "
+             "run, 8.6 / 21.2 and 11.8 / 31.9 % per interval), before the default changed: "
+             "**tuned** (the replay was seen). With one factor per run (session 50's model) on "
+             "the same runs: {o} (run-speed-gauge/validation.json)."),
             (any(r["path"].endswith("_c.json") for r in model["calibration_runs"]),
              "two-rounds",
              "Cell+Sorted calibrated on rounds a, b and c (a median run's level per setup then), "

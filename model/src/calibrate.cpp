@@ -1047,9 +1047,9 @@ json segment_shares(const std::vector<const SphRun *> &runs) {
 }
 } // namespace
 
-json speed_normalise(std::vector<SphRun> &runs, bool enabled) {
+json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode) {
     json out{{"applied", false}};
-    if (!enabled) {
+    if (mode == SpeedGauge::off) {
         out["reason"] = "calibrate --speed-gauge off";
         return out;
     }
@@ -1073,20 +1073,39 @@ json speed_normalise(std::vector<SphRun> &runs, bool enabled) {
     std::vector<double> logs;
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const double factor = gauge[i] / reference;
-        runs[i].scale_times(1 / factor);
+        json row{{"path", runs[i].path}, {"gauge_cpu_s_per_sample", gauge[i]}, {"factor", factor}};
+        if (mode == SpeedGauge::interval) {
+            std::vector<double> inverse, factors;
+            for (double g : runs[i].interval_gauges_s(speed_gauge_half_window)) {
+                factors.push_back(g / reference);
+                inverse.push_back(reference / g);
+            }
+            runs[i].scale_times(inverse);
+            row["interval_factors"] = factors;
+        } else {
+            runs[i].scale_times(1 / factor);
+        }
         logs.push_back(std::log(factor));
-        list.push_back(
-            {{"path", runs[i].path}, {"gauge_cpu_s_per_sample", gauge[i]}, {"factor", factor}});
+        list.push_back(row);
     }
     const double mean = std::accumulate(logs.begin(), logs.end(), 0.0) / logs.size();
     double ss = 0;
     for (double l : logs)
         ss += (l - mean) * (l - mean);
     out = {{"applied", true},
+           {"mode", mode == SpeedGauge::interval ? "interval" : "run"},
            {"reference_cpu_s_per_sample", reference},
-           {"method", "each run's speed-gauge CPU seconds per sample over the runs' median is "
-                      "the host's speed factor during the run; every time the run measured is "
-                      "divided by it, so the model is at the median run's speed"},
+           {"method", mode == SpeedGauge::interval
+                          ? "each interval's speed-gauge CPU seconds per sample, pooled over +-" +
+                                std::to_string(speed_gauge_half_window) +
+                                " interval(s) and weighted by the ranks' compute, over the runs' "
+                                "median (each run's whole gauge) is the host's speed factor "
+                                "then; every time the interval measured is divided by it, so "
+                                "the model is at the median run's speed"
+                          : "each run's speed-gauge CPU seconds per sample over the runs' "
+                            "median is the host's speed factor during the run; every time the "
+                            "run measured is divided by it, so the model is at the median run's "
+                            "speed"},
            {"log_sd", logs.size() > 1 ? std::sqrt(ss / static_cast<double>(logs.size() - 1)) : 0.0},
            {"runs", list}};
     return out;

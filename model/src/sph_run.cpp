@@ -140,21 +140,65 @@ double SphRun::gauge_per_sample_s() const {
     return samples > 0 ? cpu / samples : 0.0;
 }
 
+std::vector<double> SphRun::interval_gauges_s(int half_window) const {
+    const double whole = gauge_per_sample_s();
+    const auto n = static_cast<long>(intervals.size());
+    std::vector<double> out;
+    for (long k = 0; k < n; ++k) {
+        double weighted = 0, weight = 0, cpu = 0, samples = 0;
+        for (long i = std::max(0L, k - half_window); i <= std::min(n - 1, k + half_window); ++i)
+            for (const auto &r : intervals[static_cast<std::size_t>(i)].ranks) {
+                if (r.gauge_samples <= 0)
+                    continue;
+                weighted += r.compute_s() * r.gauge_cpu_s / r.gauge_samples;
+                weight += r.compute_s();
+                cpu += r.gauge_cpu_s;
+                samples += r.gauge_samples;
+            }
+        out.push_back(weight > 0 ? weighted / weight : samples > 0 ? cpu / samples : whole);
+    }
+    return out;
+}
+
+void SphRun::scale_times(std::span<const double> factors) {
+    if (factors.size() != intervals.size())
+        throw std::invalid_argument("SphRun::scale_times: one factor per interval expected");
+    double weighted = 0, weight = 0;
+    for (std::size_t k = 0; k < intervals.size(); ++k)
+        for (const auto &r : intervals[k].ranks) {
+            weighted += r.compute_s() * factors[k];
+            weight += r.compute_s();
+        }
+    double mean = 0;
+    for (double f : factors)
+        mean += f / static_cast<double>(factors.size());
+    const double whole = weight > 0 ? weighted / weight : mean;
+    const std::vector<IntervalStats> kept = intervals;
+    scale_times(whole); // wall, re-cuts (and the intervals, redone below)
+    intervals = kept;
+    for (std::size_t k = 0; k < intervals.size(); ++k)
+        for (auto &r : intervals[k].ranks)
+            r.scale_times(factors[k]);
+}
+
+void RankStats::scale_times(double factor) {
+    for (auto &[k, v] : timers)
+        v *= factor;
+    idle_s *= factor;
+    overlap_s *= factor;
+    halo_comm_s *= factor;
+    gauge_cpu_s *= factor;
+    for (auto *a : {&shift_comm_s, &segment_cpu_s})
+        for (double &v : *a)
+            v *= factor;
+}
+
 void SphRun::scale_times(double factor) {
     wall_s *= factor;
     config.rebalance_s *= factor;
     for (auto &iv : intervals)
-        for (auto &r : iv.ranks) {
-            for (auto &[k, v] : r.timers)
-                v *= factor;
-            r.idle_s *= factor;
-            r.overlap_s *= factor;
-            r.halo_comm_s *= factor;
-            r.gauge_cpu_s *= factor;
-            for (auto *a : {&r.shift_comm_s, &r.segment_cpu_s})
-                for (double &v : *a)
-                    v *= factor;
-        }
+        for (auto &r : iv.ranks)
+            r.scale_times(factor);
 }
 
 SphRun load_sph_run(const std::filesystem::path &path) {

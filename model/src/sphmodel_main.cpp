@@ -22,7 +22,7 @@ struct Options {
     std::string time_profile = "froude";
     std::string fit_weights = "relative";
     std::string run_level = "pooled";
-    std::string speed_gauge = "normalise";
+    std::string speed_gauge = "interval";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -76,11 +76,12 @@ int run(int argc, char **argv) {
         ->capture_default_str()
         ->check(cli::IsMember({"fastest-repeat", "median", "pooled"}));
     cal->add_option("--speed-gauge", o.speed_gauge,
-                    "normalise (each run's times divided by its speed gauge over the runs' "
-                    "median: the host's speed during the run, sph --speed-gauge-every; applied "
-                    "when every run carries it) or off (the runs as measured, sessions 1-49)")
+                    "interval (each interval's times divided by the speed gauge around it, "
+                    "+-1 interval, over the runs' median: the host's speed as the run went, sph "
+                    "--speed-gauge-every; applied when every run carries it), run (one factor "
+                    "per run, session 50) or off (the runs as measured, sessions 1-49)")
         ->capture_default_str()
-        ->check(cli::IsMember({"normalise", "off"}));
+        ->check(cli::IsMember({"interval", "run", "off"}));
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
@@ -188,7 +189,9 @@ int run(int argc, char **argv) {
                        o.run_level == "fastest-repeat" ? RunLevelRule::fastest_repeat
                        : o.run_level == "median"       ? RunLevelRule::median
                                                        : RunLevelRule::pooled,
-                       o.speed_gauge == "normalise"});
+                       o.speed_gauge == "interval" ? SpeedGauge::interval
+                       : o.speed_gauge == "run"    ? SpeedGauge::run
+                                                   : SpeedGauge::off});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -1009,7 +1009,7 @@ TEST(Calibrate, SpeedGaugePutsTheRunsAtOneHostSpeed) {
         return r;
     };
     std::vector<SphRun> runs{run(1.0), run(1.5), run(1.5)};
-    const auto j = speed_normalise(runs, true);
+    const auto j = speed_normalise(runs, SpeedGauge::run);
     ASSERT_TRUE(j["applied"].get<bool>());
     EXPECT_NEAR(j["reference_cpu_s_per_sample"].get<double>(), 60e-6, 1e-15);
     EXPECT_NEAR(j["runs"][0]["factor"].get<double>(), 1 / 1.5, 1e-12);
@@ -1033,13 +1033,71 @@ TEST(Calibrate, SpeedGaugePutsTheRunsAtOneHostSpeed) {
     two.intervals[0].ranks.push_back(idle);
     EXPECT_NEAR(two.gauge_per_sample_s(), 40e-6, 1e-15);
     std::vector<SphRun> mixed{run(1.0), measured_run(2.0)};
-    const auto none = speed_normalise(mixed, true);
+    const auto none = speed_normalise(mixed, SpeedGauge::interval);
     EXPECT_FALSE(none["applied"].get<bool>());
     EXPECT_NE(none["reason"].get<std::string>().find("measured.json"), std::string::npos);
     EXPECT_DOUBLE_EQ(mixed[0].wall_s, 2.0);
     std::vector<SphRun> off{run(1.0), run(1.5)};
-    EXPECT_FALSE(speed_normalise(off, false)["applied"].get<bool>());
+    EXPECT_FALSE(speed_normalise(off, SpeedGauge::off)["applied"].get<bool>());
     EXPECT_DOUBLE_EQ(off[1].wall_s, 3.0);
+}
+
+// With --speed-gauge interval a host that slows down within a run is taken out interval by
+// interval: a run of six intervals whose last three ran 1.5 times slower (their times and
+// their gauge) comes out flat at the reference speed, where one factor per run leaves the
+// step; the gauge of an interval is pooled over +-1 interval (speed_gauge_half_window).
+TEST(Calibrate, IntervalSpeedGaugeTakesOutASlowdownWithinARun) {
+    auto run = [](const std::vector<double> &slow) {
+        SphRun r = measured_run(6.0);
+        const IntervalStats first = r.intervals[0];
+        r.intervals.clear();
+        for (std::size_t k = 0; k < slow.size(); ++k) {
+            IntervalStats iv = first;
+            iv.step = static_cast<std::int64_t>(k + 1) * 10;
+            auto &rk = iv.ranks[0];
+            for (auto &[name, v] : rk.timers)
+                v = (name == "comm_s" ? 0.1 : 0.5) * slow[k];
+            rk.gauge_cpu_s = 10 * 40e-6 * slow[k];
+            rk.gauge_samples = 10;
+            r.intervals.push_back(iv);
+        }
+        return r;
+    };
+    const std::vector<double> steady(6, 1.0), step{1.0, 1.0, 1.0, 1.5, 1.5, 1.5};
+    ASSERT_EQ(speed_gauge_half_window, 1);
+    std::vector<SphRun> runs{run(steady), run(steady), run(step)};
+    const auto j = speed_normalise(runs, SpeedGauge::interval);
+    ASSERT_TRUE(j["applied"].get<bool>());
+    EXPECT_EQ(j["mode"], "interval");
+    EXPECT_NEAR(j["reference_cpu_s_per_sample"].get<double>(), 40e-6, 1e-15);
+    // The gauge pooled over +-1 interval, compute-weighted: 40 us where the window is steady,
+    // at the step (0.5 x 40 + 0.5 x 40 + 0.75 x 60) / 1.75 and its mirror image.
+    const double at_3 = (0.5 * 40 + 0.5 * 40 + 0.75 * 60) / 1.75 / 40;
+    const double at_4 = (0.5 * 40 + 0.75 * 60 + 0.75 * 60) / 2.0 / 40;
+    const std::vector<double> want{1.0, 1.0, at_3, at_4, 1.5, 1.5};
+    const auto &factors = j["runs"][2]["interval_factors"];
+    ASSERT_EQ(factors.size(), want.size());
+    for (std::size_t k = 0; k < want.size(); ++k) {
+        EXPECT_NEAR(factors[k].get<double>(), want[k], 1e-12);
+        EXPECT_NEAR(runs[2].intervals[k].ranks[0].timer("pairs_s"), 0.5 * step[k] / want[k], 1e-12);
+    }
+    // Away from the step the slow intervals are back at the reference speed: 0.5 s.
+    EXPECT_NEAR(runs[2].intervals[5].ranks[0].timer("comp_s"), 0.5, 1e-12);
+    EXPECT_NEAR(runs[0].intervals[4].ranks[0].timer("comp_s"), 0.5, 1e-12);
+    // The wall as the sum of its intervals, each divided by its own factor (weighted by the
+    // interval's compute, 1 s per step of slowdown here).
+    double weighted = 0, weight = 0;
+    for (std::size_t k = 0; k < want.size(); ++k) {
+        weighted += step[k] / want[k];
+        weight += step[k];
+    }
+    EXPECT_NEAR(runs[2].wall_s, 6.0 * weighted / weight, 1e-12);
+    // One factor per run leaves the step in: the last interval stays 1.5 times the first.
+    std::vector<SphRun> whole{run(steady), run(steady), run(step)};
+    speed_normalise(whole, SpeedGauge::run);
+    EXPECT_NEAR(whole[2].intervals[5].ranks[0].timer("comp_s") /
+                    whole[2].intervals[0].ranks[0].timer("comp_s"),
+                1.5, 1e-12);
 }
 
 // A prediction's band (+-2 sd of ln(time)): with a 5 % scatter, a run 20 % faster than

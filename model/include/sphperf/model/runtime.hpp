@@ -84,6 +84,15 @@ enum class FitWeights { absolute, relative };
 //     overrides it (sessions 16-42, and the default again since session 45: a sum of step
 //     times pays the mean, and on the VM's Intel host the fastest repeat sat below it).
 enum class RunLevelRule { fastest_repeat, median, pooled };
+// How calibration uses the runs' speed gauge (sph --speed-gauge-every). interval: each
+// interval's times divided by the host's speed factor around it (its gauge pooled over +-1
+// interval, session 51); run: one factor per run (session 50); off: the runs as measured.
+enum class SpeedGauge { interval, run, off };
+// Intervals each side pooled into an interval's gauge (--speed-gauge interval). Chosen in
+// session 51 from the calibration runs alone: between repeated rounds of one configuration
+// the shape of the cost over the run differed by 11.1 % (sd of ln, level removed) with one
+// factor per run, 9.5 / 7.8 / 7.9 / 8.3 % with windows of 0 / 1 / 2 / 4 intervals.
+constexpr int speed_gauge_half_window = 1;
 struct CalibrateOptions {
     bool allow_other_host = false;
     TermSelection term_selection = TermSelection::levelled_one_se;
@@ -91,15 +100,18 @@ struct CalibrateOptions {
     FitWeights fit_weights = FitWeights::relative;
     RunLevelRule run_level = RunLevelRule::pooled;
     // Put every calibration run at one host speed by its speed gauge (speed_normalise).
-    bool speed_gauge = true;
+    SpeedGauge speed_gauge = SpeedGauge::interval;
 };
 // The speed gauge's normalisation (session 50): each run's gauge CPU seconds per sample over
 // the runs' median is the host's speed factor during that run, and every time the run measured
-// is divided by it, so the fit sees the runs at one speed (the median run's). Applied only when
-// `enabled` and every run carries gauge samples; returns {"applied", "reason" or
-// "reference_cpu_s_per_sample", "runs": [{path, gauge_cpu_s_per_sample, factor}],
-// "log_sd" (standard deviation of ln factor)}.
-nlohmann::json speed_normalise(std::vector<SphRun> &runs, bool enabled);
+// is divided by it, so the fit sees the runs at one speed (the median run's). With
+// SpeedGauge::interval each interval's times are divided by the factor of the gauge around it
+// (SphRun::interval_gauges_s) instead, so a host that sped up or slowed down within a run does
+// not bend the cost's shape over the flow. Applied unless `mode` is off, when every run carries
+// gauge samples; returns {"applied", "mode", "reason" or "reference_cpu_s_per_sample", "runs":
+// [{path, gauge_cpu_s_per_sample, factor (the run's, compute-weighted), interval_factors (with
+// interval)}], "log_sd" (standard deviation of ln factor over the runs)}.
+nlohmann::json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode);
 nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
 // The Froude-time profile of one compute entry (a fit of one grid and thread count, with its

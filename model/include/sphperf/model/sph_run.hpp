@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,8 @@ struct RankStats {
     double timer(const std::string &key) const;
     // Everything the rank computes locally per step (all phases but comm, wait and output).
     double compute_s() const;
+    // Every time this rank-interval measured, times `factor` (SphRun::scale_times).
+    void scale_times(double factor);
 };
 
 struct IntervalStats {
@@ -74,10 +77,18 @@ struct SphRun {
     // The speed gauge's CPU seconds per sample over the whole run: each rank-interval's mean
     // weighted by its compute (0: no samples).
     double gauge_per_sample_s() const;
+    // The same per interval, pooled over the intervals within `half_window` of it (each
+    // rank-interval weighted by its compute; by its samples where no rank computed; the whole
+    // run's figure where the window has no sample): the host's speed as the run went.
+    std::vector<double> interval_gauges_s(int half_window) const;
     // Every time the run measured (wall, timers, idle, transfers, CPU segments), times
     // `factor`: the run as it would have measured on a host `factor` times slower. Predictions
     // the run recorded (comm_predict_s ...) and the latency probe are left as they are.
     void scale_times(double factor);
+    // The same with one factor per interval (`factors` has one entry per interval): the
+    // interval's rank times by its own; the wall and the re-cuts by the mean factor, each
+    // interval weighted by its ranks' compute (the wall as the sum of its intervals).
+    void scale_times(std::span<const double> factors);
 };
 
 SphRun load_sph_run(const std::filesystem::path &path);
