@@ -173,9 +173,8 @@ void SphRun::scale_times(std::span<const double> factors) {
     for (double f : factors)
         mean += f / static_cast<double>(factors.size());
     const double whole = weight > 0 ? weighted / weight : mean;
-    const std::vector<IntervalStats> kept = intervals;
-    scale_times(whole); // wall, re-cuts (and the intervals, redone below)
-    intervals = kept;
+    wall_s *= whole;
+    config.rebalance_s *= whole;
     for (std::size_t k = 0; k < intervals.size(); ++k)
         for (auto &r : intervals[k].ranks)
             r.scale_times(factors[k]);
