@@ -462,6 +462,8 @@ CAL_EXTRA="--run-level fastest-repeat" beside model_and_validate "$out/fastest-r
 CAL_EXTRA="--speed-gauge off" beside model_and_validate "$out/no-speed-gauge" levelled-one-se froude
 # One speed factor per calibration run (session 50) instead of one per interval (session 51).
 CAL_EXTRA="--speed-gauge run" beside model_and_validate "$out/run-speed-gauge" levelled-one-se froude
+# The cost term walls offered to the term selection again (sessions 1-50).
+CAL_EXTRA="--walls-term" beside model_and_validate "$out/walls-term" levelled-one-se froude
 # The Froude-time profile as the moving ratio of sessions 16-41 instead of the robust quadratic.
 beside model_and_validate "$out/windowed-profile" levelled-one-se froude-windowed
 beside model_and_validate "$out/absolute-weights" levelled-one-se froude absolute

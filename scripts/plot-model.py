@@ -539,6 +539,15 @@ def markdown(model, validation, args, out):
              "the gauge's agreement with repeated runs (model/NOTES.md), before any validation ran "
              "with it: not tuned. Without it (the runs as measured, sessions 1-49's model) on the "
              "same runs: {o} (no-speed-gauge/validation.json)."),
+            (True,
+             "walls-term",
+             "The compute-cost term walls (every wall particle of a rank) no longer offered to "
+             "the term selection, since session 51: a rank's dry walls measured to cost nothing "
+             "(under 0.2 us each, where the fit had put 2.7 us), but the change was decided "
+             "after seeing session 50's stored job's misses and replaying five jobs (only one of "
+             "them chose walls: 8.6 / 21.2 % with it, 8.0 / 17.5 % without): **tuned**. With walls "
+             "offered (calibrate --walls-term, sessions 1-50's candidates) on the same runs: {o} "
+             "(walls-term/validation.json)."),
             ((model.get("speed_gauge") or {}).get("mode") == "interval",
              "run-speed-gauge",
              "The gauge applied per interval (calibrate --speed-gauge interval: each interval's "

@@ -316,12 +316,20 @@ std::string configuration_key(const RunConfig &c) {
 
 json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &runs,
                  TermSelection rule, TimeProfile profile, FitWeights weights,
-                 RunLevelRule level_rule) {
+                 RunLevelRule level_rule, bool walls_term) {
     const std::vector<Point> pts =
         profile != TimeProfile::none ? common_reach(all_pts, runs) : all_pts;
     // With a Froude-time profile the flow's evolution is the profile's: no term that grows with
-    // simulated time (descents) competes with it.
-    std::vector<std::string> optional{"const", "owned", "walls", "ghost", "cell_moves"};
+    // simulated time (descents) competes with it. Not `walls` alone (every wall particle of the
+    // rank): a rank's dry walls cost nothing measurable (session 51: a 2-rank Cell+Table dam
+    // break at scale 0.35 against 1 rank, half the walls on the busy rank and the same
+    // interactions, 1.008 +- 0.016 times its time, under 0.2 us per wall), while calibration at
+    // two scales cannot tell it from `const` (tied scores) and it priced a wall at 2.7 us, which
+    // put a 2-rank run 18 % under its 1-rank twin. A wet wall's pair work is in `interactions`.
+    // calibrate --walls-term offers it again (sessions 1-50's candidates).
+    std::vector<std::string> optional{"const", "owned", "ghost", "cell_moves"};
+    if (walls_term)
+        optional.insert(optional.begin() + 2, "walls");
     if (profile == TimeProfile::none)
         optional.push_back("descents");
     const std::vector<SetupTerm> excluded = setup_terms(pts, runs, optional);
@@ -1215,7 +1223,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     json compute = json::array();
     for (const auto &[key, pts] : by_grid_threads) {
         json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile, opt.fit_weights,
-                             opt.run_level);
+                             opt.run_level, opt.walls_term);
         c["grid"] = key.first;
         c["threads"] = key.second;
         std::vector<const SphRun *> mine;

@@ -23,6 +23,7 @@ struct Options {
     std::string fit_weights = "relative";
     std::string run_level = "pooled";
     std::string speed_gauge = "interval";
+    bool walls_term = false;
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -82,6 +83,10 @@ int run(int argc, char **argv) {
                     "per run, session 50) or off (the runs as measured, sessions 1-49)")
         ->capture_default_str()
         ->check(cli::IsMember({"interval", "run", "off"}));
+    cal->add_flag("--walls-term", o.walls_term,
+                  "Also offer the compute-cost term walls (every wall particle of a rank), as "
+                  "sessions 1-50 did (a rank's dry walls cost nothing measurable: model/NOTES.md, "
+                  "session 51)");
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
@@ -191,7 +196,8 @@ int run(int argc, char **argv) {
                                                        : RunLevelRule::pooled,
                        o.speed_gauge == "interval" ? SpeedGauge::interval
                        : o.speed_gauge == "run"    ? SpeedGauge::run
-                                                   : SpeedGauge::off});
+                                                   : SpeedGauge::off,
+                       o.walls_term});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

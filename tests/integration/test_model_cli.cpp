@@ -13,6 +13,7 @@
 #include <fstream>
 #include <map>
 #include <numeric>
+#include <set>
 #include <sstream>
 
 using namespace sphperf::testing;
@@ -467,6 +468,30 @@ TEST(ModelCli, RunLevelPoolsOrTakesTheFastestRepeat) {
 
 // Relative weights (the default) and absolute ones: the held-out score carries its unit in its
 // key, and R^2 and the residual standard error stay in seconds per step either way.
+// The cost term walls (every wall particle of a rank) is offered to the term selection only
+// with --walls-term (session 51: a rank's dry walls cost nothing measurable); the other terms
+// stay candidates either way.
+TEST(ModelCli, WallsTermIsACandidateOnlyWhenAskedFor) {
+    const auto &f = fixture();
+    for (const bool walls : {false, true}) {
+        const auto out = f.dir / (walls ? "model_walls_term.json" : "model_no_walls_term.json");
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+                (walls ? " --walls-term" : "") + " --runs " + f.run1.string() + " " +
+                f.run2.string() + " " + f.run3.string() + " --out " + out.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        std::set<std::string> offered;
+        const auto m = load(out);
+        for (const auto &c : m["compute"])
+            for (const auto &cand : c["candidates"])
+                for (const auto &t : cand["terms"])
+                    offered.insert(t.get<std::string>());
+        EXPECT_EQ(offered.count("walls"), walls ? 1u : 0u);
+        EXPECT_EQ(offered.count("const"), 1u);
+        EXPECT_EQ(offered.count("interactions"), 1u);
+    }
+}
+
 TEST(ModelCli, FitWeightsReportTheirUnits) {
     const auto &f = fixture();
     for (const std::string weights : {"relative", "absolute"}) {

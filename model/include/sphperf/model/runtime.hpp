@@ -101,6 +101,9 @@ struct CalibrateOptions {
     RunLevelRule run_level = RunLevelRule::pooled;
     // Put every calibration run at one host speed by its speed gauge (speed_normalise).
     SpeedGauge speed_gauge = SpeedGauge::interval;
+    // Offer the cost term `walls` (every wall particle of a rank) to the term selection, as
+    // sessions 1-50 did; session 51 measured that a rank's dry walls cost nothing (calibrate.cpp).
+    bool walls_term = false;
 };
 // The speed gauge's normalisation (session 50): each run's gauge CPU seconds per sample over
 // the runs' median is the host's speed factor during that run, and every time the run measured
