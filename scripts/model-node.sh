@@ -150,8 +150,8 @@ more_runs=1
 # dam break within 5.6 % (model/NOTES.md, session 16). Cell+Sorted's half-scale dam break
 # stays: it is cheap and covers the whole validation flow (1500 steps of 0.1 ms at every scale:
 # 0.21 in Froude time, the validation's 0.15); reaching furthest in Froude time of the model's
-# runs, it is also the workload trace (the 2-thread dam breaks at 0.35, 0.25, serve
-# two-thread-scales/ only).
+# runs, it is also the workload trace (the 2-thread dam breaks at 0.35 reach further, 0.25,
+# but the trace is of 1-thread runs).
 calibrate_round() { # calibrate_round LABEL
     local t0=$SECONDS grid
     for grid in table list; do
@@ -172,17 +172,17 @@ calibrate_round() { # calibrate_round LABEL
             --steps "$cs_steps" --interval "$c_interval"
     done
     # Rounds a's and b's are the model's (round b's since session 44).
-    cal_s=$((cal_s + SECONDS - t0))
-    t0=$SECONDS
-    # The 2-thread dam break at scale 0.35 too (session 31: a step also costs about 50 us
-    # whatever its work, a fifth of a scale-0.35 step and 3 % of a scale-1 one), for
-    # two-thread-scales/ only: cross-validation never kept a term for it, and its runs' level
-    # (1.03-1.28 of the fit in session 37's jobs, against 0.92-1.11 at 0.7) put the 1 x 2 dam
-    # break at scale 1 high (model/NOTES.md, session 37).
+    # The 2-thread dam break at two scales, 0.35 here and 0.7 in sorted_runs (the model's
+    # since session 52; sessions 37-51 read 0.7 alone, two-thread-one-scale/): a 2-thread step
+    # costs about 0.12 ms whatever its work (a scale sweep 0.35-1.4, model/NOTES.md, session
+    # 52), a quarter of a scale-0.35 step and 4 % of a scale-1 one, and with the dam break at
+    # one scale cross-validation cannot tell it from the cost of an interaction, which put the
+    # 1 x 2 dam break at scale 1 high (+12.8 % mean over the 13 stored jobs on this host).
+    # As long as the list and table dam breaks at 0.35 (0.155 in Froude time, past the
+    # validation's 0.15): at 1500 steps it would reach past the half-scale dam break and become
+    # the workload trace, a coarser one.
     sph 1x2 "cal_dambreak_s0.35_sorted_t2_$1" --setup dambreak --scale 0.35 --grid sorted \
-        --steps "$c_steps" --interval "$c_interval"
-    cmp_s=$((cmp_s + SECONDS - t0))
-    t0=$SECONDS
+        --steps "$c35_steps" --interval "$c_interval"
     sorted_runs "$1"
     cal_s=$((cal_s + SECONDS - t0))
 }
@@ -219,7 +219,6 @@ sorted_runs() {
         --steps "$cs_steps" --interval "$c_interval"
 }
 cal_s=0
-cmp_s=0 # runs that only comparison models read
 val_s=0
 # validate_run [--rep K] [--twin] RANKS[xTHREADS] NAME ARGS...: one validation run, as NAME, or
 # as the K-th of the short configurations' spread runs ($repeats/NAME.repK; keep_median picks
@@ -344,10 +343,9 @@ short_pass "$short_repeats"
 # rule RULE, the time profile PROFILE and the fit weights WEIGHTS (relative unless given),
 # predict with the time-sharing form SHARING (replay unless given), validate; with the
 # reports listed in the arrays cal_reports and val_reports.
-# The model's calibration runs: round a, and Cell+Sorted's rounds b and c; not the 2-thread dam
-# breaks at scale 0.35 (two-thread-scales/).
+# The model's calibration runs: every round's (rounds a and b, and Cell+Sorted's c).
 model_runs() {
-    ls "$runs"/cal_*.json | grep -v -E '/cal_dambreak_s0\.35_sorted_t2_'
+    ls "$runs"/cal_*.json
 }
 mapfile -t cal_reports < <(model_runs)
 val_reports=("$runs"/val_*.json)
@@ -449,12 +447,11 @@ if [ "$more_runs" -eq 1 ]; then
     beside model_and_validate "$out/s035-round-a" levelled-one-se froude
     mapfile -t cal_reports < <(model_runs)
 fi
-# With the 2-thread dam breaks at scale 0.35 as well (session 31's model).
-if ls "$runs"/cal_dambreak_s0.35_sorted_t2_*.json >/dev/null 2>&1; then
-    mapfile -t cal_reports < <(model_runs; ls "$runs"/cal_dambreak_s0.35_sorted_t2_*.json)
-    beside model_and_validate "$out/two-thread-scales" levelled-one-se froude
-    mapfile -t cal_reports < <(model_runs)
-fi
+# Without the 2-thread dam breaks at scale 0.35 (sessions 37-51's calibration: at 2 threads
+# the dam break at 0.7 and the still tank at 0.5 only).
+mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.35_sorted_t2_')
+beside model_and_validate "$out/two-thread-one-scale" levelled-one-se froude
+mapfile -t cal_reports < <(model_runs)
 # Each repeated configuration's fastest run sets its setup's level (sessions 43-44) instead of
 # the level of all calibration runs pooled through the time profile.
 CAL_EXTRA="--run-level fastest-repeat" beside model_and_validate "$out/fastest-repeat" levelled-one-se froude
@@ -478,4 +475,4 @@ beside model_and_validate "$out/no-profile" levelled-one-se none absolute
 beside model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute
 for pid in "${beside_pids[@]}"; do wait "$pid"; done # a failed comparison fails the job
 /usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" \
-    --validation-s "$val_s" --comparison-s "$cmp_s" --fresh-exchange-s "$fresh_s"
+    --validation-s "$val_s" --fresh-exchange-s "$fresh_s"
