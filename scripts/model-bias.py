@@ -1,0 +1,174 @@
+#!/usr/bin/python3
+"""The model's bias over repeated main jobs: which configurations it gets wrong every time, and
+which only as often as the host's run-to-run noise allows. One job cannot tell them apart (on a
+noisy host a right prediction misses a single run by 10-30 %); several jobs can.
+
+    /usr/bin/python3 scripts/model-bias.py VALIDATION.json VALIDATION.json [...] [--own-speed]
+        [--min-jobs 3] [--json OUT]
+
+Each file is a `sphmodel validate` report (a main job's validation.json; older jobs' are in the
+git history of results/reference/<host>/). Per configuration (setup, grid, --overlap,
+decomposition, scale, ranks x threads, steps) over the reports holding it: n, the mean of
+e = ln(predicted / measured) shown as exp(mean) - 1, its standard deviation and standard error,
+and t = mean / standard error. Marked systematic when |t| >= 2 over at least --min-jobs reports:
+that error is the model's, not one run's. Below the table: the pooled standard deviation of e
+about each configuration's mean (the noise the reports share) and the share of the mean square
+of e that the configurations' means carry (the model's share; the rest is noise).
+--own-speed: the errors at each run's own host speed (validate's speed_gauge.wall_error), a
+diagnostic that takes the host's speed during the run out; reports without it are skipped.
+--json OUT: the same as a JSON report (schema, this checkout's commit, each input's commit,
+host, build and topology).
+"""
+import argparse
+import math
+import os
+import statistics
+import sys
+
+from script_common import git_commit, write_json
+
+SCHEMA = 1
+
+
+class InputError(Exception):
+    """Bad input: one line naming it, exit 2, no file written."""
+
+
+def load_report(path):
+    import json
+    try:
+        with open(path) as f:
+            doc = json.load(f)
+    except OSError as e:
+        raise InputError(f"cannot read {path}: {e.strerror}")
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path} is not JSON ({e.msg} at line {e.lineno})")
+    if not isinstance(doc, dict) or doc.get("benchmark") != "sphmodel-validation":
+        raise InputError(f"{path} is not a sphmodel validation report (benchmark "
+                         f"'{doc.get('benchmark') if isinstance(doc, dict) else None}', expected "
+                         f"'sphmodel-validation')")
+    if not isinstance(doc.get("configurations"), list):
+        raise InputError(f"{path} has no configurations list")
+    return doc
+
+
+def configuration_key(c):
+    grid = c["grid"] + (" overlap" if c.get("overlap") else "")
+    if c.get("decomposition", "equal") != "equal":
+        grid += " " + c["decomposition"]
+    shared = " (shared)" if c.get("oversubscribed") else ""
+    return (c["setup"], grid, f"{c['scale']:g}", f"{c['ranks']} x {c['threads']}{shared}",
+            int(c["steps"]))
+
+
+def error_of(c, own_speed, path):
+    """ln(predicted / measured) of one configuration, or None where --own-speed has no gauge."""
+    try:
+        if own_speed:
+            sg = c.get("speed_gauge")
+            if not isinstance(sg, dict) or sg.get("wall_error") is None:
+                return None
+            return math.log1p(sg["wall_error"])
+        return math.log1p(c["wall_error"])
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"{path}: a configuration without a usable wall error ({e})")
+
+
+def summarise(reports, own_speed, min_jobs):
+    errors = {}
+    for path, doc in reports:
+        for c in doc["configurations"]:
+            try:
+                key = configuration_key(c)
+            except KeyError as e:
+                raise InputError(f"{path}: a configuration without {e}")
+            e = error_of(c, own_speed, path)
+            if e is not None:
+                errors.setdefault(key, []).append(e)
+    rows = []
+    within_ss, within_dof, total_ss, total_n = 0.0, 0, 0.0, 0
+    for key in sorted(errors):
+        es = errors[key]
+        n, mean = len(es), statistics.fmean(es)
+        sd = statistics.stdev(es) if n >= 2 else None
+        se = sd / math.sqrt(n) if sd else None
+        t = mean / se if se else None
+        rows.append({"setup": key[0], "grid": key[1], "scale": float(key[2]), "ranks_x_threads": key[3],
+                     "steps": key[4], "jobs": n, "mean_error": math.expm1(mean),
+                     "sd_log": sd, "se_log": se, "t": t,
+                     "systematic": bool(t is not None and n >= min_jobs and abs(t) >= 2),
+                     "errors": [math.expm1(e) for e in es]})
+        within_ss += sum((e - mean) ** 2 for e in es)
+        within_dof += n - 1
+        total_ss += sum(e * e for e in es)
+        total_n += n
+    if within_dof < 1:
+        raise InputError("no configuration appears in two reports: nothing to separate bias "
+                         "from noise")
+    return {"configurations": rows,
+            "noise_sd_log": math.sqrt(within_ss / within_dof),
+            "bias_share_of_mean_square": 1 - within_ss / total_ss if total_ss > 0 else 0.0,
+            "rms_error_log": math.sqrt(total_ss / total_n)}
+
+
+def pct(x):
+    return "-" if x is None else f"{100 * x:+.1f} %"
+
+
+def print_table(summary, reports, own_speed, min_jobs):
+    what = "at each run's own host speed" if own_speed else "as predicted"
+    print(f"Wall-time error {what} over {len(reports)} validation reports "
+          f"(mean of ln(predicted / measured), shown as a percentage; systematic: |t| >= 2 over "
+          f">= {min_jobs} reports)")
+    print()
+    print("| setup | grid | scale | ranks x threads | steps | jobs | mean error | sd | t | |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in summary["configurations"]:
+        sd = "-" if r["sd_log"] is None else f"{100 * r['sd_log']:.1f} %"
+        t = "-" if r["t"] is None else f"{r['t']:+.1f}"
+        print(f"| {r['setup']} | {r['grid']} | {r['scale']:g} | {r['ranks_x_threads']} | {r['steps']} | "
+              f"{r['jobs']} | {pct(r['mean_error'])} | {sd} | {t} | "
+              f"{'**systematic**' if r['systematic'] else ''} |")
+    print()
+    print(f"Run-to-run noise (pooled sd of ln about each configuration's mean): "
+          f"{100 * summary['noise_sd_log']:.1f} %; rms error {100 * summary['rms_error_log']:.1f} %, "
+          f"of whose mean square the configurations' means carry "
+          f"{100 * summary['bias_share_of_mean_square']:.0f} %.")
+    n_sys = sum(r["systematic"] for r in summary["configurations"])
+    print(f"Systematic: {n_sys} of {len(summary['configurations'])} configurations.")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("reports", nargs="+", help="sphmodel validation reports (validation.json)")
+    ap.add_argument("--own-speed", action="store_true",
+                    help="the errors at each run's own host speed (default: as predicted)")
+    ap.add_argument("--min-jobs", type=int, default=3,
+                    help="reports a configuration needs before it can be marked systematic (default 3)")
+    ap.add_argument("--json", metavar="OUT", help="also write the summary as JSON to OUT")
+    args = ap.parse_args()
+    try:
+        if args.min_jobs < 2:
+            raise InputError(f"--min-jobs {args.min_jobs}: expected an integer of 2 or more")
+        if len(args.reports) < 2:
+            raise InputError(f"{len(args.reports)} validation report given: expected 2 or more "
+                             f"(one job cannot tell bias from noise)")
+        reports = [(p, load_report(p)) for p in args.reports]
+        summary = summarise(reports, args.own_speed, args.min_jobs)
+    except InputError as e:
+        print(f"model-bias.py: {e}", file=sys.stderr)
+        sys.exit(2)
+    print_table(summary, reports, args.own_speed, args.min_jobs)
+    if args.json:
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        doc = {"schema": SCHEMA, "benchmark": "sphperf-model-bias", "git_commit": git_commit(root),
+               "errors": "own_speed" if args.own_speed else "as_predicted", "min_jobs": args.min_jobs,
+               "inputs": [{"path": p, "git_commit": d.get("git_commit"), "host": d.get("host"),
+                           "timestamp": d.get("timestamp"), "build": d.get("build"),
+                           "topology": d.get("topology")} for p, d in reports]}
+        doc.update(summary)
+        write_json(args.json, doc)
+
+
+if __name__ == "__main__":
+    main()
