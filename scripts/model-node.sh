@@ -190,14 +190,6 @@ calibrate_round() { # calibrate_round LABEL
 sorted_runs() {
     sph 2 "cal_dambreak_s0.5_sorted_$1" --setup dambreak --scale 0.5 --grid sorted \
         --steps "$c_steps" --interval "$c_interval"
-    # The dam break at a second scale, as at 2 threads (session 52): a 1-thread step costs
-    # about 75 us whatever its work (a 1-rank sweep 0.25-1: 14.8 ns per interaction + 75 us
-    # within 2 %; on 2 ranks the cost per interaction at scale 1 is 0.93 times 0.5's), which
-    # the dam break at one scale cannot tell from the cost of an interaction. As long as the
-    # list and table dam breaks at 0.35, so the half-scale one stays the workload trace; 0.5
-    # alone (sessions 37-51) is validated beside in sorted-one-scale/.
-    sph 2 "cal_dambreak_s0.35_sorted_$1" --setup dambreak --scale 0.35 --grid sorted \
-        --steps "$c35_steps" --interval "$c_interval"
     sph 2 "cal_still_s0.5_sorted_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     # Above the cores (every rank busy): the app's own time-sharing overhead at 1.5 ranks per
@@ -459,9 +451,6 @@ fi
 # the dam break at 0.7 and the still tank at 0.5 only).
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.35_sorted_t2_')
 beside model_and_validate "$out/two-thread-one-scale" levelled-one-se froude
-# Without Cell+Sorted's 1-thread dam breaks at scale 0.35 (sessions 37-51's: 0.5 alone).
-mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.35_sorted_[abc]\.json$')
-beside model_and_validate "$out/sorted-one-scale" levelled-one-se froude
 mapfile -t cal_reports < <(model_runs)
 # Each repeated configuration's fastest run sets its setup's level (sessions 43-44) instead of
 # the level of all calibration runs pooled through the time profile.

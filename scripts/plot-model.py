@@ -589,17 +589,6 @@ def markdown(model, validation, args, out):
              "stored jobs were replayed before the change: **tuned**. With the dam break at 0.7 "
              "only (sessions 37-51's calibration) on the same runs: {o} "
              "(two-thread-one-scale/validation.json)."),
-            (any(r["path"].endswith(("_s0.35_sorted_a.json", "_s0.35_sorted_b.json",
-                                     "_s0.35_sorted_c.json")) for r in model["calibration_runs"]),
-             "sorted-one-scale",
-             "Cell+Sorted at 1 thread calibrated on its dam break at two scales (0.35 and 0.5, on 2 "
-             "ranks) and its still tank at 0.5, since session 52, as at 2 threads: a 1-rank sweep "
-             "(0.25-1, per unit of the speed gauge) measured about 75 us per step whatever its work "
-             "(interactions + const within 2 %), and over session 52's 15 stored and new jobs the "
-             "sorted dam break on 2 ranks came out +5.1 % on average (t = 2.0, scripts/model-bias.py); "
-             "decided before its first main job, kept after two: **tuned**. With the dam break at "
-             "0.5 only (sessions 37-51's calibration) on the same runs: {o} "
-             "(sorted-one-scale/validation.json)."),
         ]
         for in_use, subdir, line in choices:
             o = untuned(subdir)

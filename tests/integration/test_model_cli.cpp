@@ -1129,3 +1129,75 @@ TEST(ModelCli, HelpShowsDefaults) {
     EXPECT_NE(r.out.find("--scale"), std::string::npos);
     EXPECT_NE(r.out.find("dambreak"), std::string::npos); // the default setup is shown
 }
+
+// scripts/model-bias.py over synthetic validation reports: six jobs, one configuration predicted
+// 15 % high in every job (with the host's noise about it), one right on average (+-10 %). The
+// first is marked systematic, the second not; bad input exits 2 with one line and no file.
+TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("sphperf_model_bias_" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    const std::string script =
+        "/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) + "/model-bias.py";
+    const std::vector<double> noise{0.04, -0.05, 0.02, -0.03, 0.06, -0.04};
+    std::string reports;
+    for (std::size_t job = 0; job < noise.size(); ++job) {
+        auto config = [](const char *grid, int ranks, double error) {
+            return nlohmann::json{{"setup", "dambreak"},
+                                  {"grid", grid},
+                                  {"overlap", false},
+                                  {"decomposition", "equal"},
+                                  {"scale", 1.0},
+                                  {"ranks", ranks},
+                                  {"threads", 1},
+                                  {"steps", 1500},
+                                  {"oversubscribed", false},
+                                  {"wall_error", error}};
+        };
+        const double biased = std::exp(std::log(1.15) + noise[job]) - 1;
+        const double unbiased = std::exp((job % 2 ? -0.1 : 0.1) + noise[job]) - 1;
+        const nlohmann::json doc{
+            {"benchmark", "sphmodel-validation"},
+            {"schema", 1},
+            {"git_commit", "c" + std::to_string(job)},
+            {"configurations", {config("sorted", 2, biased), config("table", 1, unbiased)}}};
+        const fs::path p = dir / ("validation_" + std::to_string(job) + ".json");
+        std::ofstream(p) << doc.dump();
+        reports += " " + p.string();
+    }
+    const fs::path out = dir / "bias.json";
+    const sphperf::testing::Run r = run(script + reports + " --json " + out.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto bias = load(out);
+    ASSERT_EQ(bias["configurations"].size(), 2u);
+    for (const auto &c : bias["configurations"]) {
+        EXPECT_EQ(c["jobs"], 6);
+        if (c["grid"] == "sorted") {
+            EXPECT_TRUE(c["systematic"].get<bool>());
+            EXPECT_NEAR(c["mean_error"].get<double>(), 0.15, 0.01);
+        } else {
+            EXPECT_FALSE(c["systematic"].get<bool>());
+            EXPECT_LT(std::abs(c["mean_error"].get<double>()), 0.03);
+        }
+    }
+    EXPECT_GT(bias["noise_sd_log"].get<double>(), 0.04);
+    EXPECT_EQ(bias["schema"], 1);
+    EXPECT_NE(r.out.find("**systematic**"), std::string::npos);
+
+    std::ofstream(dir / "malformed.json") << "{\"benchmark\": ";
+    const std::string first = (dir / "validation_0.json").string();
+    for (const auto &[args, expect] : std::vector<std::pair<std::string, std::string>>{
+             {first, "expected 2 or more"},
+             {first + " " + (dir / "nope.json").string(), "nope.json"},
+             {first + " " + (dir / "malformed.json").string(), "is not JSON"},
+             {first + " " + reference_vm + "model.json", "not a sphmodel validation report"},
+             {reports + " --min-jobs 1", "--min-jobs 1"}}) {
+        const fs::path bad = dir / "bad.json";
+        const sphperf::testing::Run b = run(script + " " + args + " --json " + bad.string());
+        EXPECT_EQ(b.code, 2) << args << b.err;
+        EXPECT_EQ(b.err_lines(), 1) << b.err;
+        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
+        EXPECT_FALSE(fs::exists(bad));
+    }
+    fs::remove_all(dir);
+}
