@@ -1159,11 +1159,14 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
         const nlohmann::json doc{
             {"benchmark", "sphmodel-validation"},
             {"schema", 1},
-            {"git_commit", "c" + std::to_string(job)},
+            {"git_commit", std::to_string(job)},
             {"configurations", {config("sorted", 2, biased), config("table", 1, unbiased)}}};
         const fs::path p = dir / ("validation_" + std::to_string(job) + ".json");
         std::ofstream(p) << doc.dump();
-        reports += " " + p.string();
+        // Appended, not " " + p.string(): GCC 12 warns -Wrestrict on a literal plus a temporary
+        // string here (its bug 105329).
+        reports += ' ';
+        reports += p.string();
     }
     const fs::path out = dir / "bias.json";
     const sphperf::testing::Run r = run(script + reports + " --json " + out.string());
