@@ -150,8 +150,8 @@ more_runs=1
 # dam break within 5.6 % (model/NOTES.md, session 16). Cell+Sorted's half-scale dam break
 # stays: it is cheap and covers the whole validation flow (1500 steps of 0.1 ms at every scale:
 # 0.21 in Froude time, the validation's 0.15); reaching furthest in Froude time of the model's
-# runs, it is also the workload trace (the 2-thread dam breaks at 0.35 reach further, 0.25,
-# but the trace is of 1-thread runs).
+# runs, it is also the workload trace (the 2-thread dam breaks at 0.35 run 920 steps so as not
+# to reach past it).
 calibrate_round() { # calibrate_round LABEL
     local t0=$SECONDS grid
     for grid in table list; do
