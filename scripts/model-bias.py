@@ -20,6 +20,7 @@ diagnostic that takes the host's speed during the run out; reports without it ar
 host, build and topology).
 """
 import argparse
+import json
 import math
 import os
 import statistics
@@ -35,7 +36,6 @@ class InputError(Exception):
 
 
 def load_report(path):
-    import json
     try:
         with open(path) as f:
             doc = json.load(f)
