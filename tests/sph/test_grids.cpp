@@ -268,6 +268,80 @@ TEST(CellSorted, PackedCandidatesAreTheFilteredRangeInOrder) {
 
 // The branch-free kernel the vectorised loops use is the quintic kernel to rounding (the
 // compiler may fuse multiply-adds differently in the two, so not always to the last bit).
+// A wall particle's density pass skips the candidate ranges that hold no fluid (a dry wall
+// packs nothing): the grid's fluid counts per column and row range are the brute-force ones,
+// and with water in the western columns only (dry walls to the east, wet walls among
+// the water, fluid ghosts in the east column) the density rates are the stored-list drivers'
+// to rounding, the dry walls' exactly 0.
+TEST(CellSorted, WallsSkipRangesWithoutFluid) {
+    Physics phys;
+    phys.h = cell / QuinticKernel::support_factor;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> water_x(3 * cell, 6 * cell), wall_x(3 * cell, 9 * cell),
+        y(-cell, 6 * cell), x_east(9 * cell, 10 * cell), u(-1, 1);
+    Particles p;
+    std::int64_t id = 0;
+    for (int i = 0; i < 300; ++i)
+        p.add_owned(
+            {water_x(rng), y(rng), u(rng), u(rng), 1000 + 10 * u(rng), 0, 1, id++, Kind::fluid});
+    // Two walls in the dry east whose one fluid partner sits 0.97 cells above or below, in
+    // the last or first row of their range.
+    for (const double yf : {2.02 * cell, 3.08 * cell})
+        p.add_owned({7.5 * cell, yf, u(rng), u(rng), 1000, 0, 1, id++, Kind::fluid});
+    for (int i = 0; i < 400; ++i)
+        p.add_owned({wall_x(rng), y(rng), 0, 0, 1000, 0, 1, id++, Kind::boundary});
+    for (const double yw : {1.05 * cell, 4.05 * cell})
+        p.add_owned({7.5 * cell, yw, 0, 0, 1000, 0, 1, id++, Kind::boundary});
+    for (int i = 0; i < 40; ++i)
+        p.add_transient({x_east(rng), y(rng), u(rng), u(rng), 1000, 0, 1, id++,
+                         i % 2 ? Kind::fluid : Kind::boundary});
+    equation_of_state(p, phys);
+    Particles q = p;
+    CellSorted sorted;
+    SortedNeighbours nb;
+    sorted.update(q, window);
+    const CellSorted::View v = sorted.view();
+    for (int c = 0; c < v.cols; ++c)
+        for (int r0 = 0; r0 < v.rows; r0 += 3)
+            for (int r1 = r0; r1 <= v.rows; r1 += 5) {
+                std::uint32_t fluid = 0;
+                for (std::uint32_t s = v.start[c * v.rows + r0]; s < v.start[c * v.rows + r1]; ++s)
+                    fluid += v.fluid[s] > 0;
+                ASSERT_EQ(v.fluid_in(c, r0, r1), fluid)
+                    << "column " << c << " rows " << r0 << ".." << r1;
+            }
+    build_neighbours(sorted, q, window, cell, nb);
+    continuity(q, nb, phys, 1e-4);
+    CellTable table;
+    NeighbourList nl;
+    table.update(p, window);
+    build_neighbours(table, p, window, cell, nl);
+    continuity(p, nl, phys, 1e-4);
+    EXPECT_EQ(nb.counts.interactions, nl.counts.interactions);
+    EXPECT_EQ(nb.counts.pairs, nl.counts.pairs);
+    double scale = 0;
+    for (std::size_t i = 0; i < p.owned(); ++i)
+        scale = std::max(scale, std::abs(p.drho[i]));
+    const auto water_within_support = [&](std::size_t i) {
+        for (std::size_t j = 0; j < p.size(); ++j)
+            if (p.kind[j] == Kind::fluid && std::hypot(p.x[i] - p.x[j], p.y[i] - p.y[j]) < cell)
+                return true;
+        return false;
+    };
+    int dry = 0, wet = 0;
+    for (std::size_t i = p.fluid(); i < p.owned(); ++i) {
+        EXPECT_NEAR(q.drho[i], p.drho[i], 1e-12 * scale) << i;
+        const bool near_water = water_within_support(i);
+        if (near_water)
+            wet += q.drho[i] != 0;
+        else
+            EXPECT_EQ(q.drho[i], 0.0) << i;
+        dry += !near_water;
+    }
+    EXPECT_GT(dry, 20);
+    EXPECT_GT(wet, 20);
+}
+
 TEST(CellSorted, BranchFreeKernelIsTheQuinticKernel) {
     const QuinticKernel k(0.013);
     const BranchFreeKernel b(k);

@@ -57,6 +57,13 @@ public:
         const std::uint32_t *blocks;        // thread t's cells: [blocks[t], blocks[t + 1])
         int threads;                        // the team size the blocks were cut for
         const std::uint8_t *remote_columns; // 1 where a column holds particles not owned
+        // Per column, rows + 1 entries: the fluid particles in its rows [0, r). A wall
+        // particle's density pass skips the ranges without fluid (a dry wall: all of them).
+        const std::uint32_t *fluid_below;
+        std::uint32_t fluid_in(int col, int row_begin, int row_end) const {
+            const std::uint32_t *f = fluid_below + static_cast<std::size_t>(col) * (rows + 1);
+            return f[row_end] - f[row_begin];
+        }
     };
 
     void update(const Particles &p, const CellWindow &w) { update(p, w, 0, 0); } // sort, copy
@@ -113,8 +120,9 @@ private:
     // between cores every pass; this VM's inter-core latency switches between about 80 and
     // 350 ns (sph/NOTES.md).
     void cut_blocks();
-    // remote_columns_ anew: the density pass counts remote partners in these columns only.
-    void mark_remote_columns();
+    // remote_columns_ and fluid_below_ anew for columns [first, last): the density pass counts
+    // remote partners in the columns holding some only, and a wall particle looks at fluid only.
+    void mark_columns(int first, int last);
     // This thread's sorted positions (inside a parallel region): those of its block's cells.
     std::pair<std::size_t, std::size_t> thread_positions() const;
     CellWindow window_;
@@ -128,6 +136,7 @@ private:
     int threads_ = 0;
     std::vector<std::uint32_t> order_, reorder_starts_; // reorder's
     std::vector<std::uint8_t> remote_columns_;
+    std::vector<std::uint32_t> fluid_below_;
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
 };
