@@ -113,7 +113,12 @@ std::pair<std::size_t, std::size_t> CellSorted::thread_positions() const {
     return {c0 == 0 ? 0 : start_[c0], c1 == cells ? orig_.size() : start_[c1]};
 }
 
-void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t to) {
+void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t to, int first_column,
+                             int last_column) {
+    const auto rows = static_cast<std::size_t>(rows_);
+    remote_columns_.resize(static_cast<std::size_t>(cols_));
+    fluid_below_.resize(static_cast<std::size_t>(cols_) * (rows + 1));
+    // One parallel region for both (a region more per step costs a wake-up of the team).
 #pragma omp parallel
     {
         const auto [s0, s1] = thread_positions();
@@ -126,6 +131,23 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
             mass_[s] = p.mass[i];
             fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
             remote_[s] = i < owned_ ? 0.0 : 1.0;
+        }
+#pragma omp barrier
+#pragma omp for schedule(static)
+        for (int col = first_column; col < last_column; ++col) {
+            const auto c = static_cast<std::size_t>(col);
+            std::uint32_t *below = fluid_below_.data() + c * (rows + 1);
+            std::uint32_t fluid = 0;
+            bool remote = false;
+            for (std::size_t r = 0; r < rows; ++r) {
+                below[r] = fluid;
+                for (std::size_t s = start_[c * rows + r]; s < start_[c * rows + r + 1]; ++s) {
+                    fluid += fluid_[s] > 0;
+                    remote |= remote_[s] > 0;
+                }
+            }
+            below[rows] = fluid;
+            remote_columns_[c] = remote;
         }
     }
 }
@@ -218,8 +240,7 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     sort_cells_by_id(p, 0, cells);
     for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
         v->resize(n + west + east);
-    copy_fields(p, west, west + n);
-    mark_columns(0, cols_);
+    copy_fields(p, west, west + n, 0, cols_);
     moves_ = n + west + east; // every particle is filed anew each step
     // Density and pressure are copied by refresh_density once they are final for the pass
     // that reads them (the density pass reads neither).
@@ -265,11 +286,9 @@ void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
         sort_cells_by_id(p, 0, rows);
     if (east_ > 0)
         sort_cells_by_id(p, cells - rows, cells);
-    copy_fields(p, 0, west_);
-    copy_fields(p, west_ + local_, west_ + local_ + east_);
     // Only the edge columns changed.
-    mark_columns(0, 1);
-    mark_columns(cols_ - 1, cols_);
+    copy_fields(p, 0, west_, 0, 1);
+    copy_fields(p, west_ + local_, west_ + local_ + east_, cols_ - 1, cols_);
 }
 
 void CellSorted::refresh_density(const Particles &p) {
@@ -313,28 +332,6 @@ CellSorted::View CellSorted::view() const {
             threads_,
             remote_columns_.data(),
             fluid_below_.data()};
-}
-
-void CellSorted::mark_columns(int first, int last) {
-    const auto rows = static_cast<std::size_t>(rows_);
-    remote_columns_.resize(static_cast<std::size_t>(cols_));
-    fluid_below_.resize(static_cast<std::size_t>(cols_) * (rows + 1));
-#pragma omp parallel for schedule(static)
-    for (int col = first; col < last; ++col) {
-        const auto c = static_cast<std::size_t>(col);
-        std::uint32_t *below = fluid_below_.data() + c * (rows + 1);
-        std::uint32_t fluid = 0;
-        bool remote = false;
-        for (std::size_t r = 0; r < rows; ++r) {
-            below[r] = fluid;
-            for (std::size_t s = start_[c * rows + r]; s < start_[c * rows + r + 1]; ++s) {
-                fluid += fluid_[s] > 0;
-                remote |= remote_[s] > 0;
-            }
-        }
-        below[rows] = fluid;
-        remote_columns_[c] = remote;
-    }
 }
 
 namespace {

@@ -107,7 +107,11 @@ private:
     }
     void set_window(const CellWindow &w);
     std::uint32_t key_of(double x, double y) const; // sorted cell of a position
-    void copy_fields(const Particles &p, std::size_t from, std::size_t to);
+    // Copies sorted positions [from, to) from p, then marks columns [first_column,
+    // last_column) anew (remote_columns_, fluid_below_): the density pass counts remote
+    // partners in the columns holding some only, and a wall particle looks at fluid only.
+    void copy_fields(const Particles &p, std::size_t from, std::size_t to, int first_column,
+                     int last_column);
     // Stable counting sort of [first, last) by key_: starts[c] becomes the first position of
     // cell c (cells + 1 entries, counted from `base`), out[starts[c]...] its indices in order.
     void sort_by_key(std::size_t first, std::size_t last, std::size_t base,
@@ -120,9 +124,6 @@ private:
     // between cores every pass; this VM's inter-core latency switches between about 80 and
     // 350 ns (sph/NOTES.md).
     void cut_blocks();
-    // remote_columns_ and fluid_below_ anew for columns [first, last): the density pass counts
-    // remote partners in the columns holding some only, and a wall particle looks at fluid only.
-    void mark_columns(int first, int last);
     // This thread's sorted positions (inside a parallel region): those of its block's cells.
     std::pair<std::size_t, std::size_t> thread_positions() const;
     CellWindow window_;
