@@ -95,15 +95,55 @@ void CellSorted::cut_blocks() {
             for (std::size_t cell = c0; cell < c1; ++cell)
                 cost_[cell + 1] += before;
     }
+    const std::vector<double> shares = thread_shares(threads);
     blocks_.assign(static_cast<std::size_t>(threads) + 1, static_cast<std::uint32_t>(cells));
     blocks_[0] = 0;
-    for (int t = 1; t < threads; ++t)
+    double before = 0;
+    for (int t = 1; t < threads; ++t) {
+        before += shares[static_cast<std::size_t>(t - 1)];
+        const auto target =
+            static_cast<std::uint64_t>(std::llround(static_cast<double>(cost_[cells]) * before));
         blocks_[t] = static_cast<std::uint32_t>(
-            std::lower_bound(cost_.begin(), cost_.end(),
-                             cost_[cells] * static_cast<std::uint64_t>(t) /
-                                 static_cast<std::uint64_t>(threads)) -
-            cost_.begin());
+            std::lower_bound(cost_.begin(), cost_.end(), target) - cost_.begin());
+    }
+    block_cost_.resize(static_cast<std::size_t>(threads));
+    for (std::size_t t = 0; t < block_cost_.size(); ++t)
+        block_cost_[t] = cost_[blocks_[t + 1]] - cost_[blocks_[t]];
     threads_ = threads;
+}
+
+std::vector<double> CellSorted::thread_shares(int threads) {
+    const auto n = static_cast<std::size_t>(threads);
+    // The last step's blocks: their cost and the time each thread spent on them in the pair
+    // passes give its seconds per unit of cost, smoothed over about 1 / speed_smoothing steps.
+    if (threads == threads_ && pass_time_.size() == n && block_cost_.size() == n) {
+        if (seconds_per_cost_.size() != n)
+            seconds_per_cost_.assign(n, 0.0);
+        for (std::size_t t = 0; t < n; ++t) {
+            const double seconds = pass_time_[t].seconds;
+            if (block_cost_[t] == 0 || !(seconds > 0))
+                continue;
+            const double rate = seconds / static_cast<double>(block_cost_[t]);
+            double &r = seconds_per_cost_[t];
+            r = r > 0 ? r + speed_smoothing * (rate - r) : rate;
+        }
+    } else {
+        seconds_per_cost_.clear();
+    }
+    pass_time_.assign(n, PassTime{});
+    // A thread that got through its cost faster gets more of it: shares in proportion to the
+    // inverse rates, equal until every thread has one.
+    std::vector<double> shares(n, 1.0 / static_cast<double>(n));
+    if (seconds_per_cost_.size() == n &&
+        std::all_of(seconds_per_cost_.begin(), seconds_per_cost_.end(),
+                    [](double r) { return r > 0; })) {
+        double sum = 0;
+        for (std::size_t t = 0; t < n; ++t)
+            sum += shares[t] = 1.0 / seconds_per_cost_[t];
+        for (double &sh : shares)
+            sh /= sum;
+    }
+    return shares;
 }
 
 std::pair<std::size_t, std::size_t> CellSorted::thread_positions() const {
@@ -557,13 +597,29 @@ std::pair<int, int> thread_cells(const CellSorted::View &v) {
     return {static_cast<int>(c0), static_cast<int>(c1)};
 }
 
+// Books the calling thread's time in a pair pass (from construction to destruction, inside
+// the parallel region) to the grid, which cuts the next step's blocks by it.
+class PassTimer {
+public:
+    explicit PassTimer(CellSorted &grid) : grid_(grid), start_(omp_get_wtime()) {}
+    PassTimer(const PassTimer &) = delete;
+    PassTimer &operator=(const PassTimer &) = delete;
+    ~PassTimer() { grid_.add_pass_time(omp_get_thread_num(), omp_get_wtime() - start_); }
+
+private:
+    CellSorted &grid_;
+    double start_;
+};
+
 // Runs per_particle(sorted index, col, row, scratch) for every owned particle of the columns,
 // each thread over its block of cells (balanced by the grid: the water is not spread evenly)
 // with its own scratch.
 template <class F>
-void for_each_owned(const CellSorted::View &v, ColumnSet columns, F &&per_particle) {
+void for_each_owned(CellSorted &grid, const CellSorted::View &v, ColumnSet columns,
+                    F &&per_particle) {
 #pragma omp parallel
     {
+        const PassTimer timer(grid);
         PackedCandidates scratch;
         const auto [c0, c1] = thread_cells(v);
         for (int cell = c0; cell < c1; ++cell) {
@@ -590,6 +646,7 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
     std::uint64_t interactions = 0, remote = 0;
 #pragma omp parallel reduction(+ : interactions, remote)
     {
+        const PassTimer timer(*nb.grid);
         PackedCandidates nbr;
         const auto [c0, c1] = thread_cells(v);
         for (int cell = c0; cell < c1; ++cell) {
@@ -650,49 +707,52 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
     const double h = k.h, eta2 = 0.01 * h * h, visc_coef = -2 * phys.alpha * phys.c0 * h;
-    for_each_owned(v, columns, [&](std::size_t i, int col, int row, PackedCandidates &nbr) {
-        const std::uint32_t oi = v.orig[i];
-        if (v.fluid[i] == 0) { // wall particles do not move
-            p.ax[oi] = 0;
-            p.ay[oi] = 0;
-            return;
-        }
-        // i is fluid: every j interacts.
-        pack_neighbourhood<Counted::no, Partners::all>(v, col, row, i, r2max, nbr);
-        const double vxi = v.vx[i], vyi = v.vy[i];
-        const double rhoi = v.rho[i], pri = v.p_over_rho2[i];
-        const std::uint32_t *idx = nbr.index.data();
-        const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-        PairSum ax, ay;
-        for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
+    for_each_owned(*nb.grid, v, columns,
+                   [&](std::size_t i, int col, int row, PackedCandidates &nbr) {
+                       const std::uint32_t oi = v.orig[i];
+                       if (v.fluid[i] == 0) { // wall particles do not move
+                           p.ax[oi] = 0;
+                           p.ay[oi] = 0;
+                           return;
+                       }
+                       // i is fluid: every j interacts.
+                       pack_neighbourhood<Counted::no, Partners::all>(v, col, row, i, r2max, nbr);
+                       const double vxi = v.vx[i], vyi = v.vy[i];
+                       const double rhoi = v.rho[i], pri = v.p_over_rho2[i];
+                       const std::uint32_t *idx = nbr.index.data();
+                       const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+                       PairSum ax, ay;
+                       for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
 #pragma omp simd
-            for (int l = 0; l < pair_lanes; ++l) {
-                const std::uint32_t j = idx[q + l];
-                const double dx = sx[q + l], dy = sy[q + l];
-                const double d2 = dx * dx + dy * dy;
-                // 0 for the padding, at distance 0. A multiplied mask, not a select: GCC turns
-                // the select into a conditional store here, which does not vectorise; every
-                // term is finite, so 0 x term adds nothing.
-                const double mask = d2 > 0 ? 1.0 : 0.0;
-                const double r = std::sqrt(d2 + tiny);
-                const double vdotr = (vxi - v.vx[j]) * dx + (vyi - v.vy[j]) * dy;
-                // One division for three quotients, 1/r, 1/(r^2 + eta^2) and
-                // 1/(rho_i + rho_j): divisions and the square root are what this loop waits on.
-                const double dv = (d2 + eta2) * (rhoi + v.rho[j]);
-                const double inv = 1.0 / (r * dv);
-                // Monaghan's viscosity for approaching pairs only (vdotr < 0): clamping vdotr
-                // rather than branching keeps the loop branch-free; receding pairs get 0.
-                const double visc = visc_coef * std::min(vdotr, 0.0) * (r * inv);
-                const double f =
-                    k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) * (dv * inv);
-                const double coef = v.mass[j] * (pri + v.p_over_rho2[j] + visc);
-                ax.v[l] += mask * (-coef * f * dx);
-                ay.v[l] += mask * (-coef * f * dy);
-            }
-        }
-        p.ax[oi] = ax.total();
-        p.ay[oi] = ay.total() - phys.gravity;
-    });
+                           for (int l = 0; l < pair_lanes; ++l) {
+                               const std::uint32_t j = idx[q + l];
+                               const double dx = sx[q + l], dy = sy[q + l];
+                               const double d2 = dx * dx + dy * dy;
+                               // 0 for the padding, at distance 0. A multiplied mask, not a select:
+                               // GCC turns the select into a conditional store here, which does not
+                               // vectorise; every term is finite, so 0 x term adds nothing.
+                               const double mask = d2 > 0 ? 1.0 : 0.0;
+                               const double r = std::sqrt(d2 + tiny);
+                               const double vdotr = (vxi - v.vx[j]) * dx + (vyi - v.vy[j]) * dy;
+                               // One division for three quotients, 1/r, 1/(r^2 + eta^2) and
+                               // 1/(rho_i + rho_j): divisions and the square root are what this
+                               // loop waits on.
+                               const double dv = (d2 + eta2) * (rhoi + v.rho[j]);
+                               const double inv = 1.0 / (r * dv);
+                               // Monaghan's viscosity for approaching pairs only (vdotr < 0):
+                               // clamping vdotr rather than branching keeps the loop branch-free;
+                               // receding pairs get 0.
+                               const double visc = visc_coef * std::min(vdotr, 0.0) * (r * inv);
+                               const double f = k.alpha_d_over_h *
+                                                BranchFreeKernel::slope(r * k.inv_h) * (dv * inv);
+                               const double coef = v.mass[j] * (pri + v.p_over_rho2[j] + visc);
+                               ax.v[l] += mask * (-coef * f * dx);
+                               ay.v[l] += mask * (-coef * f * dy);
+                           }
+                       }
+                       p.ax[oi] = ax.total();
+                       p.ay[oi] = ay.total() - phys.gravity;
+                   });
 }
 
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {
@@ -702,23 +762,24 @@ void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {
     const double r2max = phys.cell_size() * phys.cell_size();
     const double w0 = k.value(0.0);
     std::vector<double> filtered(p.owned(), 0.0);
-    for_each_owned(v, ColumnSet{}, [&](std::size_t i, int col, int row, PackedCandidates &) {
-        if (v.fluid[i] == 0)
-            return; // wall densities follow the continuity equation
-        const double xi = v.x[i], yi = v.y[i];
-        LaneSum num, den;
-        for_each_candidate(v, col, row, [&](std::size_t j, int l) {
-            const double dx = xi - v.x[j], dy = yi - v.y[j];
-            const double d2 = dx * dx + dy * dy;
-            const bool in = (d2 < r2max) & (j != i);
-            const double wr = k.value(std::sqrt(d2)); // 0 beyond the support anyway
-            const double w = in ? wr : 0.0;
-            num.v[l] += v.mass[j] * w;
-            den.v[l] += v.mass[j] / v.rho[j] * w;
-        });
-        filtered[v.orig[i]] =
-            (v.mass[i] * w0 + num.total()) / (v.mass[i] / v.rho[i] * w0 + den.total());
-    });
+    for_each_owned(*nb.grid, v, ColumnSet{},
+                   [&](std::size_t i, int col, int row, PackedCandidates &) {
+                       if (v.fluid[i] == 0)
+                           return; // wall densities follow the continuity equation
+                       const double xi = v.x[i], yi = v.y[i];
+                       LaneSum num, den;
+                       for_each_candidate(v, col, row, [&](std::size_t j, int l) {
+                           const double dx = xi - v.x[j], dy = yi - v.y[j];
+                           const double d2 = dx * dx + dy * dy;
+                           const bool in = (d2 < r2max) & (j != i);
+                           const double wr = k.value(std::sqrt(d2)); // 0 beyond the support anyway
+                           const double w = in ? wr : 0.0;
+                           num.v[l] += v.mass[j] * w;
+                           den.v[l] += v.mass[j] / v.rho[j] * w;
+                       });
+                       filtered[v.orig[i]] = (v.mass[i] * w0 + num.total()) /
+                                             (v.mass[i] / v.rho[i] * w0 + den.total());
+                   });
     for (std::size_t i = 0; i < p.fluid(); ++i)
         p.rho[i] = filtered[i];
 }

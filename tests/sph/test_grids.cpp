@@ -437,6 +437,56 @@ TEST(CellSorted, ThreadBlocksAreBalancedAndTheSortIsTheSerialOne) {
     omp_set_num_threads(threads_before);
 }
 
+// The blocks follow the threads' measured speed: a thread that took four times as long as the
+// others over an equal block gets a quarter of their share next (1/9, 4/9, 4/9 of the cost);
+// a step without timings keeps the shares; another team size starts again from equal ones.
+TEST(CellSorted, ThreadBlocksFollowTheThreadsMeasuredSpeed) {
+    const Particles p = random_configuration(6, 900, 120);
+    const int threads_before = omp_get_max_threads();
+    omp_set_num_threads(3);
+    CellSorted g;
+    const auto block_shares = [&] {
+        const CellSorted::View v = g.view();
+        const int cells = v.cols * v.rows;
+        std::vector<double> cost(static_cast<std::size_t>(cells), 0.0);
+        for (int c = 0; c < cells; ++c) {
+            const int col = c / v.rows, row = c % v.rows;
+            const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
+            const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
+            double candidates = 0;
+            for (int k = std::max(col - 1, 0); k <= std::min(col + 1, v.cols - 1); ++k)
+                candidates += v.start[k * v.rows + r1 + 1] - v.start[k * v.rows + r0];
+            cost[static_cast<std::size_t>(c)] = (v.start[c + 1] - v.start[c]) * candidates;
+        }
+        const double total = std::accumulate(cost.begin(), cost.end(), 0.0);
+        std::vector<double> shares;
+        for (int t = 0; t < v.threads; ++t)
+            shares.push_back(
+                std::accumulate(cost.begin() + v.blocks[t], cost.begin() + v.blocks[t + 1], 0.0) /
+                total);
+        return shares;
+    };
+    g.update(p, window);
+    std::vector<double> shares = block_shares();
+    ASSERT_EQ(shares.size(), 3u);
+    for (int t = 0; t < 3; ++t)
+        g.add_pass_time(t, (t == 0 ? 4.0 : 1.0) * shares[static_cast<std::size_t>(t)]);
+    g.update(p, window);
+    const std::vector<double> expected{1.0 / 9, 4.0 / 9, 4.0 / 9};
+    for (int step = 0; step < 2; ++step) { // the second without timings
+        shares = block_shares();
+        for (std::size_t t = 0; t < 3; ++t)
+            EXPECT_NEAR(shares[t], expected[t], 0.03) << "thread " << t << ", step " << step;
+        g.update(p, window);
+    }
+    omp_set_num_threads(2);
+    g.update(p, window);
+    shares = block_shares();
+    ASSERT_EQ(shares.size(), 2u);
+    EXPECT_NEAR(shares[0], 0.5, 0.03);
+    omp_set_num_threads(threads_before);
+}
+
 TEST(Particles, PermuteRefusesWhatIsNotAFluidFirstPermutation) {
     Particles p = random_configuration(12, 10, 0); // ids 0 and 5 are walls, at positions 8, 9
     std::vector<std::uint32_t> order{1, 0, 2, 3, 4, 5, 6, 7, 8, 9};

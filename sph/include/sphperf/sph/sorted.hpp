@@ -100,6 +100,14 @@ public:
     // The same for the ghost positions only (their density came after the others').
     void refresh_ghost_density(const Particles &p);
     View view() const;
+    // A thread's seconds in a pass over its block (inside the parallel region; each thread
+    // writes its own entry): the next cut_blocks gives the threads shares of the cost by how
+    // fast they got through it. Another team size than the blocks' is not booked.
+    void add_pass_time(int thread, double seconds) {
+        if (static_cast<std::size_t>(thread) < pass_time_.size() &&
+            pass_time_.size() == static_cast<std::size_t>(threads_))
+            pass_time_[static_cast<std::size_t>(thread)].seconds += seconds;
+    }
 
 private:
     int first_sorted_cell(int window_cell) const {
@@ -124,6 +132,18 @@ private:
     // between cores every pass; this VM's inter-core latency switches between about 80 and
     // 350 ns (sph/NOTES.md).
     void cut_blocks();
+    // Each thread's share of the cost for cut_blocks: equal, or by the threads' measured
+    // seconds per unit of cost (add_pass_time) at this team size. The bits of every result do
+    // not depend on the cut, only its speed does.
+    std::vector<double> thread_shares(int threads);
+    // Weight of the latest step in the smoothed seconds per unit of cost.
+    static constexpr double speed_smoothing = 0.1;
+    struct alignas(64) PassTime { // one cache line each: the threads write them concurrently
+        double seconds = 0;
+    };
+    std::vector<PassTime> pass_time_;       // this step's, per thread
+    std::vector<std::uint64_t> block_cost_; // the cost of each thread's block
+    std::vector<double> seconds_per_cost_;  // smoothed, per thread
     // This thread's sorted positions (inside a parallel region): those of its block's cells.
     std::pair<std::size_t, std::size_t> thread_positions() const;
     CellWindow window_;
