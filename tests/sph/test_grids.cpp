@@ -74,6 +74,22 @@ template <class G> PairSet search(G &grid, const Particles &p) {
     find_neighbours(grid, p, window, cell, nl);
     return from_list(p, nl);
 }
+// Per cell of a sorted grid, the candidates its particles examine: its particles times the
+// candidates in the ranges around it (the cost the thread blocks are cut at).
+std::vector<double> candidates_examined(const CellSorted::View &v) {
+    const int cells = v.cols * v.rows;
+    std::vector<double> cost(static_cast<std::size_t>(cells), 0.0);
+    for (int c = 0; c < cells; ++c) {
+        const int col = c / v.rows, row = c % v.rows;
+        const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
+        const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
+        double candidates = 0;
+        for (int k = std::max(col - 1, 0); k <= std::min(col + 1, v.cols - 1); ++k)
+            candidates += v.start[k * v.rows + r1 + 1] - v.start[k * v.rows + r0];
+        cost[static_cast<std::size_t>(c)] = (v.start[c + 1] - v.start[c]) * candidates;
+    }
+    return cost;
+}
 } // namespace
 
 template <class G> class GridTest : public ::testing::Test {};
@@ -413,16 +429,7 @@ TEST(CellSorted, ThreadBlocksAreBalancedAndTheSortIsTheSerialOne) {
         EXPECT_EQ(std::vector<std::uint32_t>(v.orig, v.orig + p.size()), orig) << "pass " << pass;
         ASSERT_EQ(v.threads, 3);
         const int cells = v.cols * v.rows;
-        std::vector<double> cost(static_cast<std::size_t>(cells), 0.0);
-        for (int c = 0; c < cells; ++c) {
-            const int col = c / v.rows, row = c % v.rows;
-            const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
-            const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
-            double candidates = 0;
-            for (int k = std::max(col - 1, 0); k <= std::min(col + 1, v.cols - 1); ++k)
-                candidates += v.start[k * v.rows + r1 + 1] - v.start[k * v.rows + r0];
-            cost[static_cast<std::size_t>(c)] = (v.start[c + 1] - v.start[c]) * candidates;
-        }
+        const std::vector<double> cost = candidates_examined(v);
         const double total = std::accumulate(cost.begin(), cost.end(), 0.0);
         const double largest = *std::max_element(cost.begin(), cost.end());
         EXPECT_EQ(v.blocks[0], 0u);
@@ -447,17 +454,7 @@ TEST(CellSorted, ThreadBlocksFollowTheThreadsMeasuredSpeed) {
     CellSorted g;
     const auto block_shares = [&] {
         const CellSorted::View v = g.view();
-        const int cells = v.cols * v.rows;
-        std::vector<double> cost(static_cast<std::size_t>(cells), 0.0);
-        for (int c = 0; c < cells; ++c) {
-            const int col = c / v.rows, row = c % v.rows;
-            const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
-            const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
-            double candidates = 0;
-            for (int k = std::max(col - 1, 0); k <= std::min(col + 1, v.cols - 1); ++k)
-                candidates += v.start[k * v.rows + r1 + 1] - v.start[k * v.rows + r0];
-            cost[static_cast<std::size_t>(c)] = (v.start[c + 1] - v.start[c]) * candidates;
-        }
+        const std::vector<double> cost = candidates_examined(v);
         const double total = std::accumulate(cost.begin(), cost.end(), 0.0);
         std::vector<double> shares;
         for (int t = 0; t < v.threads; ++t)
