@@ -915,22 +915,29 @@ TEST(ModelCli, ExchangeReportReplacesTheProfilesShiftCosts) {
         r = still_sorted_with_profile(2, machine, report, " --exchange " + exchange);
         ASSERT_EQ(r.code, 0) << r.err;
         const auto measured = load(report);
-        double steps = 0, following = 0;
+        double steps = 0, following = 0, others_following = 0;
         for (const auto &iv : measured["intervals"])
             for (const auto &rk : iv["ranks"]) {
                 const double n = rk["steps"].get<double>();
                 const auto &k = rk["shifts"];
-                for (const char *kind : {"migration", "densities"})
-                    EXPECT_NEAR(k[kind]["comm_predict_s"].get<double>(), n * 1e-3, 1e-12) << kind;
-                // ghosts: a x 1e-1 + (n - a) x 1e-3 for the a shifts costed as following
-                const double a = (k["ghosts"]["comm_predict_s"].get<double>() - n * 1e-3) / 0.099;
-                EXPECT_NEAR(a, std::round(a), 1e-6);
+                // Each kind: a x 1e-1 + (n - a) x 1e-3 for the a shifts costed as following.
+                const auto costed_following = [&](const char *kind) {
+                    const double a = (k[kind]["comm_predict_s"].get<double>() - n * 1e-3) / 0.099;
+                    EXPECT_NEAR(a, std::round(a), 1e-6) << kind;
+                    EXPECT_GE(std::round(a), 0) << kind;
+                    return std::round(a);
+                };
+                following += costed_following("ghosts");
+                others_following += costed_following("migration") + costed_following("densities");
                 steps += n;
-                following += a;
             }
-        // A rank descheduled while packing its ghosts may cost one shift as blocking.
+        // A rank descheduled while packing its ghosts may cost one shift as blocking; one
+        // stalled for a few ms before a shift lengthens the gap since that kind's last shift
+        // tenfold, and its next migration or densities then count as following (seen once in
+        // CI: a 60 ms stall, two migrations of ten costed as following on both ranks).
         EXPECT_GE(following, 0.9 * steps);
         EXPECT_LE(following, steps);
+        EXPECT_LE(others_following, 0.1 * 2 * steps);
     }
 
     const auto out = dir / "refused.json";
