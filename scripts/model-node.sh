@@ -104,11 +104,11 @@ fresh_exchange() {
 # needs the validation's simulated time (model/NOTES.md "Memory order"); a prediction they
 # cannot make from these runs is listed as such.
 if [ "$quick" -eq 1 ]; then
-    v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c35_steps=130 c7_steps=60 cs_steps=40 interval=20
-    c_interval=10
+    v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c35_steps=130 c7_steps=60 c25_steps=60 cs_steps=40
+    interval=20 c_interval=10
 else
-    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 c35_steps=920 c7_steps=300 cs_steps=300
-    interval=100 c_interval=20
+    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 c35_steps=920 c7_steps=300 c25_steps=300
+    cs_steps=300 interval=100 c_interval=20
 fi
 # The validation runs under 3 s (the sorted still tanks and the 2-thread dam break) run 3 times
 # and the median run is validated: a slow spell of this VM (10-35 % over minutes) covers a whole
@@ -120,8 +120,8 @@ fi
 # +28 %), and a calibration run 90 s before that block did not follow its speed (correlation
 # -0.07; model/NOTES.md, session 42). Each one's first run alone is validated too (first-runs/).
 short_repeats=3
-# The model calibrates on 30 runs: Cell+List's and Cell+Table's in rounds a and b (since session
-# 44, their dam breaks at 0.35 since session 46; round a only in sessions 38-43), Cell+Sorted's short ones (half-scale still tanks at 2, 3 and 4 ranks and at 2 threads, dam
+# The model calibrates on 36 runs: Cell+List's and Cell+Table's in rounds a and b (since session
+# 44, their dam breaks at 0.35 since session 46, at 0.25 since session 54; round a only in sessions 38-43), Cell+Sorted's short ones (half-scale still tanks at 2, 3 and 4 ranks and at 2 threads, dam
 # breaks at 0.5 x 2 ranks and 0.7 x 2 threads) in rounds a, b and c; the level of each setup is
 # its runs' pooled level (calibrate --run-level pooled: a mean, what a sum of step times pays;
 # sessions 43-44 took each repeated configuration's fastest run, validated beside in
@@ -168,6 +168,15 @@ calibrate_round() { # calibrate_round LABEL
         # main jobs, model/NOTES.md, session 30).
         sph 2 "cal_dambreak_s0.7_${grid}_$1" --setup dambreak --scale 0.7 --grid "$grid" \
             --steps "$c7_steps" --interval "$c_interval"
+        # And a smaller one (since session 54): a list or table step costs about 0.2-0.25 ms
+        # beyond its interactions (a scale sweep 0.25-2, 2 ranks, per unit of the speed gauge:
+        # interactions + const within 3 % at every scale, interactions alone -13 % at 0.25 to
+        # +5 % at 2; model/NOTES.md, session 54), about 11 % of a step at 0.35 and 2 % at 0.7.
+        # With only those two scales cross-validation could not tell it from run-to-run noise
+        # and kept interactions alone, which put the scale-2 dam breaks +11 and +19 % high in a
+        # quiet hour. At 0.25 it is about a fifth of a step. 300 steps, 0.06 in Froude time.
+        sph 2 "cal_dambreak_s0.25_${grid}_$1" --setup dambreak --scale 0.25 --grid "$grid" \
+            --steps "$c25_steps" --interval "$c_interval"
         sph 2 "cal_still_s0.5_${grid}_$1" --setup still --scale 0.5 --grid "$grid" \
             --steps "$cs_steps" --interval "$c_interval"
     done
@@ -447,6 +456,10 @@ if [ "$more_runs" -eq 1 ]; then
     beside model_and_validate "$out/s035-round-a" levelled-one-se froude
     mapfile -t cal_reports < <(model_runs)
 fi
+# Without the list and table dam breaks at scale 0.25 (sessions 46-53's calibration: 0.35 and 0.7).
+mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.25_(list|table)_')
+beside model_and_validate "$out/list-table-two-scales" levelled-one-se froude
+mapfile -t cal_reports < <(model_runs)
 # Without the 2-thread dam breaks at scale 0.35 (sessions 37-51's calibration: at 2 threads
 # the dam break at 0.7 and the still tank at 0.5 only).
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.35_sorted_t2_')
