@@ -472,6 +472,9 @@ CAL_EXTRA="--run-level fastest-repeat" beside model_and_validate "$out/fastest-r
 CAL_EXTRA="--speed-gauge off" beside model_and_validate "$out/no-speed-gauge" levelled-one-se froude
 # One speed factor per calibration run (session 50) instead of one per interval (session 51).
 CAL_EXTRA="--speed-gauge run" beside model_and_validate "$out/run-speed-gauge" levelled-one-se froude
+# The gauge of an interval as the window's compute-weighted mean (sessions 51-53) instead of its
+# median (one gauge sample hit by a host interrupt read 1.5-4 times the others).
+CAL_EXTRA="--speed-gauge interval-mean" beside model_and_validate "$out/mean-gauge-window" levelled-one-se froude
 # The cost term walls offered to the term selection again (sessions 1-50).
 CAL_EXTRA="--walls-term" beside model_and_validate "$out/walls-term" levelled-one-se froude
 # The Froude-time profile as the moving ratio of sessions 16-41 instead of the robust quadratic.

@@ -414,13 +414,15 @@ def markdown(model, validation, args, out):
         corrected = s.get("wall_abs_error_speed_corrected")
         if gauge.get("applied"):
             factors = [r["factor"] for r in gauge["runs"]]
-            per_interval = gauge.get("mode") == "interval"
+            per_interval = gauge.get("mode") in ("interval", "interval-mean")
             line = (f"Speed gauge (sph --speed-gauge-every: a fixed piece of the density pass's "
                     f"arithmetic timed on every thread every few steps, model/NOTES.md sessions 50-51): the "
                     f"calibration runs ran at {min(factors):.2f}-{max(factors):.2f} times the median run's "
                     f"gauge time (sd of ln {100 * gauge['log_sd']:.1f} %), and every time they measured is "
                     + ("divided by the factor of the gauge around it (each interval's, pooled over +-1 "
-                       "interval: calibrate --speed-gauge interval)" if per_interval else
+                       "interval as the compute-weighted "
+                       + ("median: calibrate --speed-gauge interval)" if gauge.get("mode") == "interval"
+                          else "mean: calibrate --speed-gauge interval-mean)") if per_interval else
                        "divided by their run's factor (calibrate --speed-gauge run)")
                     + ", so the model is at one host speed.")
             if corrected:
@@ -589,6 +591,17 @@ def markdown(model, validation, args, out):
              "stored jobs were replayed before the change: **tuned**. With the dam break at 0.7 "
              "only (sessions 37-51's calibration) on the same runs: {o} "
              "(two-thread-one-scale/validation.json)."),
+            ((model.get("speed_gauge") or {}).get("mode") == "interval",
+             "mean-gauge-window",
+             "An interval's speed gauge as the compute-weighted median over +-1 interval "
+             "(calibrate --speed-gauge interval), since session 54: a gauge sample is 30 us of "
+             "arithmetic, and 2 % of the calibration runs' rank-intervals read 1.3-4.3 times "
+             "their run's median while the interval's compute did not move (a host interrupt "
+             "inside the sample); the window's mean took each for a slowdown of three intervals, "
+             "which in session 54's second job put one 0.25 run 15 % off its twin and hid a "
+             "list step's fixed cost from cross-validation. Decided after seeing two main jobs' "
+             "validation: **tuned**. With the window's mean (sessions 51-53) on the same runs: "
+             "{o} (mean-gauge-window/validation.json)."),
             (any("_s0.25_list_" in r["path"] or "_s0.25_table_" in r["path"]
                  for r in model["calibration_runs"]),
              "list-table-two-scales",

@@ -1082,9 +1082,12 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode) {
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const double factor = gauge[i] / reference;
         json row{{"path", runs[i].path}, {"gauge_cpu_s_per_sample", gauge[i]}, {"factor", factor}};
-        if (mode == SpeedGauge::interval) {
+        if (mode == SpeedGauge::interval || mode == SpeedGauge::interval_mean) {
             std::vector<double> inverse, factors;
-            for (double g : runs[i].interval_gauges_s(speed_gauge_half_window)) {
+            for (double g :
+                 runs[i].interval_gauges_s(speed_gauge_half_window, mode == SpeedGauge::interval
+                                                                        ? SphRun::Pooling::median
+                                                                        : SphRun::Pooling::mean)) {
                 factors.push_back(g / reference);
                 inverse.push_back(reference / g);
             }
@@ -1101,12 +1104,15 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode) {
     for (double l : logs)
         ss += (l - mean) * (l - mean);
     out = {{"applied", true},
-           {"mode", mode == SpeedGauge::interval ? "interval" : "run"},
+           {"mode", mode == SpeedGauge::interval        ? "interval"
+                    : mode == SpeedGauge::interval_mean ? "interval-mean"
+                                                        : "run"},
            {"reference_cpu_s_per_sample", reference},
-           {"method", mode == SpeedGauge::interval
+           {"method", mode != SpeedGauge::run
                           ? "each interval's speed-gauge CPU seconds per sample, pooled over +-" +
-                                std::to_string(speed_gauge_half_window) +
-                                " interval(s) and weighted by the ranks' compute, over the runs' "
+                                std::to_string(speed_gauge_half_window) + " interval(s) as the " +
+                                (mode == SpeedGauge::interval ? "median" : "mean") +
+                                " of the rank-intervals weighted by their compute, over the runs' "
                                 "median (each run's whole gauge) is the host's speed factor "
                                 "then; every time the interval measured is divided by it, so "
                                 "the model is at the median run's speed"

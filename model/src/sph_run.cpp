@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 namespace sphperf::model {
@@ -140,22 +141,51 @@ double SphRun::gauge_per_sample_s() const {
     return samples > 0 ? cpu / samples : 0.0;
 }
 
-std::vector<double> SphRun::interval_gauges_s(int half_window) const {
+namespace {
+// The weighted median of (value, weight) pairs with positive weights: the value where the
+// cumulative weight reaches half the total (the mean of two values where it lands exactly on
+// the boundary between them).
+double weighted_median(std::vector<std::pair<double, double>> v) {
+    std::sort(v.begin(), v.end());
+    double total = 0;
+    for (const auto &[x, w] : v)
+        total += w;
+    double cumulative = 0;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+        cumulative += v[i].second;
+        if (cumulative > 0.5 * total * (1 + 1e-12))
+            return v[i].first;
+        if (cumulative >= 0.5 * total * (1 - 1e-12))
+            return i + 1 < v.size() ? 0.5 * (v[i].first + v[i + 1].first) : v[i].first;
+    }
+    return v.back().first;
+}
+} // namespace
+
+std::vector<double> SphRun::interval_gauges_s(int half_window, Pooling pooling) const {
     const double whole = gauge_per_sample_s();
     const auto n = static_cast<long>(intervals.size());
     std::vector<double> out;
     for (long k = 0; k < n; ++k) {
         double weighted = 0, weight = 0, cpu = 0, samples = 0;
+        std::vector<std::pair<double, double>> values;
         for (long i = std::max(0L, k - half_window); i <= std::min(n - 1, k + half_window); ++i)
             for (const auto &r : intervals[static_cast<std::size_t>(i)].ranks) {
                 if (r.gauge_samples <= 0)
                     continue;
-                weighted += r.compute_s() * r.gauge_cpu_s / r.gauge_samples;
+                const double per_sample = r.gauge_cpu_s / r.gauge_samples;
+                weighted += r.compute_s() * per_sample;
                 weight += r.compute_s();
                 cpu += r.gauge_cpu_s;
                 samples += r.gauge_samples;
+                if (r.compute_s() > 0)
+                    values.emplace_back(per_sample, r.compute_s());
             }
-        out.push_back(weight > 0 ? weighted / weight : samples > 0 ? cpu / samples : whole);
+        if (weight > 0)
+            out.push_back(pooling == Pooling::median ? weighted_median(std::move(values))
+                                                     : weighted / weight);
+        else
+            out.push_back(samples > 0 ? cpu / samples : whole);
     }
     return out;
 }

@@ -78,11 +78,12 @@ int run(int argc, char **argv) {
         ->check(cli::IsMember({"fastest-repeat", "median", "pooled"}));
     cal->add_option("--speed-gauge", o.speed_gauge,
                     "interval (each interval's times divided by the speed gauge around it, "
-                    "+-1 interval, over the runs' median: the host's speed as the run went, sph "
-                    "--speed-gauge-every; applied when every run carries it), run (one factor "
-                    "per run, session 50) or off (the runs as measured, sessions 1-49)")
+                    "the median over +-1 interval, over the runs' median: the host's speed as "
+                    "the run went, sph --speed-gauge-every; applied when every run carries it), "
+                    "interval-mean (the same with the window's mean, sessions 51-53), run (one "
+                    "factor per run, session 50) or off (the runs as measured, sessions 1-49)")
         ->capture_default_str()
-        ->check(cli::IsMember({"interval", "run", "off"}));
+        ->check(cli::IsMember({"interval", "interval-mean", "run", "off"}));
     cal->add_flag("--walls-term", o.walls_term,
                   "Also offer the compute-cost term walls (every wall particle of a rank), as "
                   "sessions 1-50 did (a rank's dry walls cost nothing measurable: model/NOTES.md, "
@@ -194,9 +195,10 @@ int run(int argc, char **argv) {
                        o.run_level == "fastest-repeat" ? RunLevelRule::fastest_repeat
                        : o.run_level == "median"       ? RunLevelRule::median
                                                        : RunLevelRule::pooled,
-                       o.speed_gauge == "interval" ? SpeedGauge::interval
-                       : o.speed_gauge == "run"    ? SpeedGauge::run
-                                                   : SpeedGauge::off,
+                       o.speed_gauge == "interval"        ? SpeedGauge::interval
+                       : o.speed_gauge == "interval-mean" ? SpeedGauge::interval_mean
+                       : o.speed_gauge == "run"           ? SpeedGauge::run
+                                                          : SpeedGauge::off,
                        o.walls_term});
         std::cout << calibration_table(model);
         sink.write(model);

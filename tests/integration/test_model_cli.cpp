@@ -1211,3 +1211,90 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
     }
     fs::remove_all(dir);
 }
+
+// scripts/scale-sweep.py --fit-only over synthetic sph reports: a step planted at 20 ns per
+// interaction + 150 us, read at a host speed that changes between intervals (the gauge says by
+// how much). The fit recovers both, interactions alone leaves a residual falling with the scale,
+// and bad input exits 2 with one line and no file.
+TEST(ModelCli, ScaleSweepRecoversAPlantedFixedCostPerStep) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("sphperf_scale_sweep_" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    const std::string script =
+        "/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) + "/scale-sweep.py";
+    const std::vector<double> slow{1.0, 1.2, 0.9, 1.1}; // the host's speed factor per interval
+    std::string reports;
+    for (const double scale : {0.25, 0.5, 1.0, 2.0}) {
+        nlohmann::json intervals = nlohmann::json::array();
+        for (std::size_t k = 0; k < slow.size(); ++k) {
+            const double interactions = 300000 * scale * scale, walls = 1000 * scale;
+            const double steps = 50, per_step = 20e-9 * interactions + 150e-6;
+            const auto rank = [&](double work) {
+                return nlohmann::json{{"steps", steps},
+                                      {"interactions", work * interactions},
+                                      {"virtual", walls},
+                                      {"field", work * 7000 * scale * scale},
+                                      {"gauge_cpu_s", 2 * 1e-5 * slow[k]},
+                                      {"gauge_samples", 2},
+                                      {"timers",
+                                       {{"comp_s", 0.6 * per_step * steps * slow[k] * work},
+                                        {"grid_s", 0.4 * per_step * steps * slow[k] * work},
+                                        {"comm_s", 1.0},
+                                        {"wait_s", 2.0}}}};
+            };
+            // The busy rank and one with a tenth of the work (the fit reads the busy one).
+            intervals.push_back({{"ranks", {rank(1.0), rank(0.1)}}});
+        }
+        const nlohmann::json doc{{"benchmark", "sph"},
+                                 {"schema", 1},
+                                 {"host", "synthetic"},
+                                 {"config",
+                                  {{"grid", "table"},
+                                   {"scale", scale},
+                                   {"setup", "dambreak"},
+                                   {"ranks", 2},
+                                   {"threads", 1}}},
+                                 {"intervals", intervals}};
+        const fs::path p = dir / ("sph_" + std::to_string(scale) + ".json");
+        std::ofstream(p) << doc.dump();
+        reports += ' ';
+        reports += p.string();
+    }
+    const fs::path out = dir / "sweep.json";
+    const std::string png = (dir / "sweep.png").string();
+    const sphperf::testing::Run r =
+        run(script + " --fit-only" + reports + " --out " + out.string() + " --png " + png);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto sweep = load(out);
+    EXPECT_EQ(sweep["schema"], 1);
+    const auto &table = sweep["grids"]["table"];
+    EXPECT_TRUE(table["gauge_applied"].get<bool>());
+    const auto &fixed = table["forms"]["interactions+const"];
+    // At one host speed, the median interval's (1.1 times the planted: the first is dropped).
+    EXPECT_NEAR(fixed["coefficients"]["ns_per_interaction"].get<double>(), 1.1 * 20.0, 0.01);
+    EXPECT_NEAR(fixed["coefficients"]["us_per_step"].get<double>(), 1.1 * 150.0, 0.1);
+    EXPECT_LT(fixed["relative_rms_residual"].get<double>(), 1e-6);
+    const auto &alone = table["forms"]["interactions"]["median_residual_by_scale"];
+    EXPECT_LT(alone["0.25"].get<double>(), -0.05); // the fixed part read as interactions
+    EXPECT_GT(alone["2"].get<double>(), 0.0);
+
+    std::ofstream(dir / "malformed.json") << "{\"benchmark\": ";
+    const std::string first = (dir / "sph_0.250000.json").string();
+    for (const auto &[args, expect] : std::vector<std::pair<std::string, std::string>>{
+             {"--fit-only " + first, "one scale only"},
+             {"--fit-only " + (dir / "nope.json").string(), "nope.json"},
+             {"--fit-only " + (dir / "malformed.json").string(), "is not JSON"},
+             {"--fit-only " + reference_vm + "model.json", "not an sph report"},
+             {"--scales 0.5,abc", "--scales '0.5,abc'"},
+             {"--scales 0.5", "two or more scales"},
+             {"--grids table,hash", "--grids 'table,hash'"},
+             {"--steps 50 --interval 50", "--steps 50"}}) {
+        const fs::path bad = dir / "bad.json";
+        const sphperf::testing::Run b = run(script + " " + args + " --out " + bad.string());
+        EXPECT_EQ(b.code, 2) << args << b.err;
+        EXPECT_EQ(b.err_lines(), 1) << b.err;
+        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
+        EXPECT_FALSE(fs::exists(bad));
+    }
+    fs::remove_all(dir);
+}

@@ -1045,7 +1045,8 @@ TEST(Calibrate, SpeedGaugePutsTheRunsAtOneHostSpeed) {
 // With --speed-gauge interval a host that slows down within a run is taken out interval by
 // interval: a run of six intervals whose last three ran 1.5 times slower (their times and
 // their gauge) comes out flat at the reference speed, where one factor per run leaves the
-// step; the gauge of an interval is pooled over +-1 interval (speed_gauge_half_window).
+// step; the gauge of an interval is pooled over +-1 interval (speed_gauge_half_window), as the
+// compute-weighted median (interval) or mean (interval-mean, sessions 51-53).
 TEST(Calibrate, IntervalSpeedGaugeTakesOutASlowdownWithinARun) {
     auto run = [](const std::vector<double> &slow) {
         SphRun r = measured_run(6.0);
@@ -1065,39 +1066,85 @@ TEST(Calibrate, IntervalSpeedGaugeTakesOutASlowdownWithinARun) {
     };
     const std::vector<double> steady(6, 1.0), step{1.0, 1.0, 1.0, 1.5, 1.5, 1.5};
     ASSERT_EQ(speed_gauge_half_window, 1);
+    // The median of each window: the step is taken out where it happened, every interval back
+    // at 0.5 s.
     std::vector<SphRun> runs{run(steady), run(steady), run(step)};
     const auto j = speed_normalise(runs, SpeedGauge::interval);
     ASSERT_TRUE(j["applied"].get<bool>());
     EXPECT_EQ(j["mode"], "interval");
     EXPECT_NEAR(j["reference_cpu_s_per_sample"].get<double>(), 40e-6, 1e-15);
-    // The gauge pooled over +-1 interval, compute-weighted: 40 us where the window is steady,
-    // at the step (0.5 x 40 + 0.5 x 40 + 0.75 x 60) / 1.75 and its mirror image.
+    const auto &median_factors = j["runs"][2]["interval_factors"];
+    ASSERT_EQ(median_factors.size(), step.size());
+    for (std::size_t k = 0; k < step.size(); ++k) {
+        EXPECT_NEAR(median_factors[k].get<double>(), step[k], 1e-12);
+        EXPECT_NEAR(runs[2].intervals[k].ranks[0].timer("pairs_s"), 0.5, 1e-12);
+    }
+    // The wall (as measured, 6 s) as the sum of its intervals, each divided by its own factor
+    // and weighted by its compute: here 6 x (3 x 1 + 3 x 1.5 / 1.5) / (3 x 1 + 3 x 1.5).
+    EXPECT_NEAR(runs[2].wall_s, 6.0 * 6.0 / 7.5, 1e-12);
+    // The mean of each window (sessions 51-53): at the step (0.5 x 40 + 0.5 x 40 + 0.75 x 60) /
+    // 1.75 and its mirror image.
+    std::vector<SphRun> mean_runs{run(steady), run(steady), run(step)};
+    const auto m = speed_normalise(mean_runs, SpeedGauge::interval_mean);
+    EXPECT_EQ(m["mode"], "interval-mean");
     const double at_3 = (0.5 * 40 + 0.5 * 40 + 0.75 * 60) / 1.75 / 40;
     const double at_4 = (0.5 * 40 + 0.75 * 60 + 0.75 * 60) / 2.0 / 40;
     const std::vector<double> want{1.0, 1.0, at_3, at_4, 1.5, 1.5};
-    const auto &factors = j["runs"][2]["interval_factors"];
+    const auto &factors = m["runs"][2]["interval_factors"];
     ASSERT_EQ(factors.size(), want.size());
     for (std::size_t k = 0; k < want.size(); ++k) {
         EXPECT_NEAR(factors[k].get<double>(), want[k], 1e-12);
-        EXPECT_NEAR(runs[2].intervals[k].ranks[0].timer("pairs_s"), 0.5 * step[k] / want[k], 1e-12);
+        EXPECT_NEAR(mean_runs[2].intervals[k].ranks[0].timer("pairs_s"), 0.5 * step[k] / want[k],
+                    1e-12);
     }
-    // Away from the step the slow intervals are back at the reference speed: 0.5 s.
-    EXPECT_NEAR(runs[2].intervals[5].ranks[0].timer("comp_s"), 0.5, 1e-12);
-    EXPECT_NEAR(runs[0].intervals[4].ranks[0].timer("comp_s"), 0.5, 1e-12);
-    // The wall as the sum of its intervals, each divided by its own factor (weighted by the
-    // interval's compute, 1 s per step of slowdown here).
+    EXPECT_NEAR(mean_runs[2].intervals[5].ranks[0].timer("comp_s"), 0.5, 1e-12);
     double weighted = 0, weight = 0;
     for (std::size_t k = 0; k < want.size(); ++k) {
         weighted += step[k] / want[k];
         weight += step[k];
     }
-    EXPECT_NEAR(runs[2].wall_s, 6.0 * weighted / weight, 1e-12);
+    EXPECT_NEAR(mean_runs[2].wall_s, 6.0 * weighted / weight, 1e-12);
     // One factor per run leaves the step in: the last interval stays 1.5 times the first.
     std::vector<SphRun> whole{run(steady), run(steady), run(step)};
     speed_normalise(whole, SpeedGauge::run);
     EXPECT_NEAR(whole[2].intervals[5].ranks[0].timer("comp_s") /
                     whole[2].intervals[0].ranks[0].timer("comp_s"),
                 1.5, 1e-12);
+}
+
+// One disturbed gauge sample (a host interrupt inside 30 us of arithmetic: it read 3 times the
+// others while the interval's compute did not move, as in session 54's calibration runs) leaves
+// the run as measured with the window's median; the mean takes it for a slowdown of the three
+// intervals around it and makes them up to a quarter cheaper than they ran.
+TEST(Calibrate, OneDisturbedGaugeSampleDoesNotRescaleTheIntervalsAroundIt) {
+    auto run = [](std::size_t spiked) {
+        SphRun r = measured_run(6.0);
+        const IntervalStats first = r.intervals[0];
+        r.intervals.clear();
+        for (std::size_t k = 0; k < 6; ++k) {
+            IntervalStats iv = first;
+            iv.step = static_cast<std::int64_t>(k + 1) * 10;
+            auto &rk = iv.ranks[0];
+            for (auto &[name, v] : rk.timers)
+                v = name == "comm_s" ? 0.1 : 0.5;
+            rk.gauge_samples = 2;
+            // Two samples of 40 us, or one of them at 120 us.
+            rk.gauge_cpu_s = k == spiked ? 160e-6 : 80e-6;
+            r.intervals.push_back(iv);
+        }
+        return r;
+    };
+    constexpr std::size_t none = 99;
+    std::vector<SphRun> median_runs{run(none), run(none), run(2)};
+    speed_normalise(median_runs, SpeedGauge::interval);
+    for (std::size_t k = 0; k < 6; ++k)
+        EXPECT_NEAR(median_runs[2].intervals[k].ranks[0].timer("pairs_s"), 0.5, 1e-12) << k;
+    EXPECT_NEAR(median_runs[2].wall_s, 6.0, 1e-12);
+    std::vector<SphRun> mean_runs{run(none), run(none), run(2)};
+    speed_normalise(mean_runs, SpeedGauge::interval_mean);
+    for (std::size_t k = 1; k <= 3; ++k)
+        EXPECT_NEAR(mean_runs[2].intervals[k].ranks[0].timer("pairs_s"), 0.5 / (80.0 / 60), 1e-12)
+            << k;
 }
 
 // A prediction's band (+-2 sd of ln(time)): with a 5 % scatter, a run 20 % faster than

@@ -85,9 +85,11 @@ enum class FitWeights { absolute, relative };
 //     times pays the mean, and on the VM's Intel host the fastest repeat sat below it).
 enum class RunLevelRule { fastest_repeat, median, pooled };
 // How calibration uses the runs' speed gauge (sph --speed-gauge-every). interval: each
-// interval's times divided by the host's speed factor around it (its gauge pooled over +-1
-// interval, session 51); run: one factor per run (session 50); off: the runs as measured.
-enum class SpeedGauge { interval, run, off };
+// interval's times divided by the host's speed factor around it (the compute-weighted median of
+// the gauge over +-1 interval, session 54); interval_mean: the same with the window's
+// compute-weighted mean (sessions 51-53), which one disturbed gauge sample moves; run: one
+// factor per run (session 50); off: the runs as measured.
+enum class SpeedGauge { interval, interval_mean, run, off };
 // Intervals each side pooled into an interval's gauge (--speed-gauge interval). Chosen in
 // session 51 from the calibration runs alone: between repeated rounds of one configuration
 // the shape of the cost over the run differed by 11.1 % (sd of ln, level removed) with one

@@ -79,8 +79,12 @@ struct SphRun {
     double gauge_per_sample_s() const;
     // The same per interval, pooled over the intervals within `half_window` of it (each
     // rank-interval weighted by its compute; by its samples where no rank computed; the whole
-    // run's figure where the window has no sample): the host's speed as the run went.
-    std::vector<double> interval_gauges_s(int half_window) const;
+    // run's figure where the window has no sample): the host's speed as the run went. Pooled
+    // as the weighted median of the rank-intervals' means (a gauge sample is 30 us of
+    // arithmetic: one hit by a host interrupt reads 1.5-4 times the others while the interval's
+    // compute does not move, session 54), or as their weighted mean (sessions 51-53).
+    enum class Pooling { median, mean };
+    std::vector<double> interval_gauges_s(int half_window, Pooling pooling = Pooling::median) const;
     // Every time the run measured (wall, timers, idle, transfers, CPU segments), times
     // `factor`: the run as it would have measured on a host `factor` times slower. Predictions
     // the run recorded (comm_predict_s ...) and the latency probe are left as they are.

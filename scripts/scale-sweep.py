@@ -1,0 +1,283 @@
+#!/usr/bin/python3
+"""Does a step cost more than its interactions? A scale sweep tells: the same setup at several
+scales, per grid, in rotating order, and a fit of each busy rank's compute per step against the
+work it counted, per unit of the host's speed.
+
+    /usr/bin/python3 scripts/scale-sweep.py [--grids list,table,sorted] [--setup dambreak]
+        [--scales 0.25,0.35,0.5,0.7,1,1.4,2] [--ranks 2] [--threads 1] [--rounds 3]
+        [--steps 300] [--interval 50] [--out results/<host>/scale_sweep.json] [--png FILE]
+    /usr/bin/python3 scripts/scale-sweep.py --fit-only REPORT.json [...] [--out FILE] [--png FILE]
+
+Per report interval (the first dropped: the first steps fill the caches), the busiest rank's
+compute per step (every phase timer but comm, wait, output and rebalance: what the model calls
+compute) over its speed-gauge factor (its gauge's CPU seconds per sample over the median of all
+intervals'; sph --speed-gauge-every, so a slow spell of the host is not read as a cost), and the
+interactions and wall particles it counted. Per grid, weighted least squares (each point
+relative to its own cost, so small scales count as much as large ones) of three forms:
+interactions alone, interactions + a constant per step, interactions + a cost per wall
+particle; for each the coefficients, the relative rms residual and the median residual per
+scale. A form is right for extrapolation when its residuals stay flat over the scales: the model
+(sphmodel calibrate) can only pick a term its calibration runs' scales can tell apart from their
+noise (model/NOTES.md, sessions 52 and 54). --fit-only fits reports already measured. Nothing else
+may run meanwhile.
+"""
+import argparse
+import itertools
+import json
+import math
+import os
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+
+from script_common import git_commit, pyplot, write_json
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build")), "bin")
+SCHEMA = 1
+NOT_COMPUTE = {"comm_s", "wait_s", "output_s", "rebalance_s"}
+FORMS = {"interactions": ("interactions",), "interactions+const": ("interactions", "const"),
+         "interactions+walls": ("interactions", "walls")}
+
+
+class InputError(Exception):
+    """Bad input: one line naming it, exit 2, no file written."""
+
+
+def positive_list(text, what, kind=float):
+    try:
+        values = [kind(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise InputError(f"--{what} '{text}' is not a comma-separated list of numbers")
+    if not values or any(not (v > 0) for v in values):
+        raise InputError(f"--{what} '{text}': expected positive numbers")
+    return values
+
+
+def run_sph(grid, setup, scale, ranks, threads, steps, interval, report):
+    cmd = ["bash", os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(ranks), "-t", str(threads),
+           os.path.join(BIN, "sph"), "--quiet", "--grid", grid, "--setup", setup, "--scale",
+           f"{scale:g}", "--threads", str(threads), "--steps", str(steps), "--interval",
+           str(interval), "--report", report]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"scale-sweep.py: sph failed ({' '.join(cmd)}): {r.stderr.strip()}")
+
+
+def load_report(path):
+    try:
+        with open(path) as f:
+            doc = json.load(f)
+    except OSError as e:
+        raise InputError(f"cannot read {path}: {e.strerror}")
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path} is not JSON ({e.msg} at line {e.lineno})")
+    if not isinstance(doc, dict) or doc.get("benchmark") != "sph":
+        raise InputError(f"{path} is not an sph report (benchmark "
+                         f"'{doc.get('benchmark') if isinstance(doc, dict) else None}', expected 'sph')")
+    return doc
+
+
+def points_of(path, doc):
+    """The busiest rank's per-step figures of every interval but the first."""
+    try:
+        cfg = doc["config"]
+        grid, scale = cfg["grid"], float(cfg["scale"])
+        pts = []
+        for iv in doc["intervals"][1:]:
+            rk = max(iv["ranks"], key=lambda r: r["interactions"])
+            steps = rk["steps"]
+            if steps <= 0 or rk["interactions"] <= 0:
+                continue
+            gauge = rk["gauge_cpu_s"] / rk["gauge_samples"] if rk.get("gauge_samples") else None
+            compute = sum(v for k, v in rk["timers"].items() if k not in NOT_COMPUTE) / steps
+            pts.append({"grid": grid, "scale": scale, "interactions": rk["interactions"],
+                        "walls": rk["virtual"], "field": rk["field"], "compute_s": compute,
+                        "gauge_s": gauge})
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"{path}: not a usable sph report (missing or bad {e})")
+    if not pts:
+        raise InputError(f"{path}: no interval after the first with a busy rank "
+                         f"(run more steps than --interval)")
+    return pts
+
+
+def solve(rows, ys):
+    """Weighted least squares by normal equations on a 2x2 or 1x1 system (rows already weighted)."""
+    n = len(rows[0])
+    a = [[sum(r[i] * r[j] for r in rows) for j in range(n)] for i in range(n)]
+    b = [sum(r[i] * y for r, y in zip(rows, ys)) for i in range(n)]
+    if n == 1:
+        return [b[0] / a[0][0]]
+    det = a[0][0] * a[1][1] - a[0][1] * a[1][0]
+    if abs(det) <= 1e-12 * abs(a[0][0] * a[1][1]):
+        return None
+    return [(b[0] * a[1][1] - b[1] * a[0][1]) / det, (a[0][0] * b[1] - a[1][0] * b[0]) / det]
+
+
+def fit(pts):
+    """Each form's coefficients and residuals; the points at one host speed."""
+    gauges = [p["gauge_s"] for p in pts if p["gauge_s"]]
+    reference = statistics.median(gauges) if len(gauges) == len(pts) else None
+    for p in pts:
+        p["compute_at_one_speed_s"] = p["compute_s"] / (p["gauge_s"] / reference) if reference \
+            else p["compute_s"]
+    scales = sorted({p["scale"] for p in pts})
+    out = {"gauge_applied": reference is not None, "scales": scales, "forms": {}}
+    for name, terms in FORMS.items():
+        def column(p, t):
+            return {"interactions": p["interactions"], "const": 1.0, "walls": p["walls"]}[t]
+        ys = [p["compute_at_one_speed_s"] for p in pts]
+        rows = [[column(p, t) / y for t in terms] for p, y in zip(pts, ys)]
+        coef = solve(rows, [1.0] * len(ys))
+        if coef is None:
+            out["forms"][name] = {"identifiable": False}
+            continue
+        res = [sum(c * column(p, t) for c, t in zip(coef, terms)) / y - 1 for p, y in zip(pts, ys)]
+        units = {"interactions": ("ns_per_interaction", 1e9), "const": ("us_per_step", 1e6),
+                 "walls": ("ns_per_wall_particle", 1e9)}
+        out["forms"][name] = {
+            "identifiable": True,
+            "coefficients": {units[t][0]: c * units[t][1] for c, t in zip(coef, terms)},
+            "relative_rms_residual": math.sqrt(sum(r * r for r in res) / len(res)),
+            "median_residual_by_scale": {f"{s:g}": statistics.median(
+                r for r, p in zip(res, pts) if p["scale"] == s) for s in scales}}
+    out["by_scale"] = [{
+        "scale": s,
+        "points": sum(1 for p in pts if p["scale"] == s),
+        "interactions_per_step": statistics.median(p["interactions"] for p in pts if p["scale"] == s),
+        "walls": statistics.median(p["walls"] for p in pts if p["scale"] == s),
+        "ns_per_interaction_at_one_speed": 1e9 * statistics.median(
+            p["compute_at_one_speed_s"] / p["interactions"] for p in pts if p["scale"] == s)}
+        for s in scales]
+    return out
+
+
+def plot(doc, png):
+    plt = pyplot("scale-sweep.py")
+    if plt is None:
+        return
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for grid, g in doc["grids"].items():
+        xs = [b["interactions_per_step"] for b in g["by_scale"]]
+        line = ax.plot(xs, [b["ns_per_interaction_at_one_speed"] for b in g["by_scale"]], "o",
+                       label=f"{grid} (measured)")[0]
+        form = g["forms"].get("interactions+const", {})
+        if form.get("identifiable"):
+            c = form["coefficients"]
+            lo, hi = min(xs), max(xs)
+            grid_x = [lo * (hi / lo) ** (k / 50) for k in range(51)]
+            ax.plot(grid_x, [c["ns_per_interaction"] + 1e3 * c["us_per_step"] / x for x in grid_x],
+                    "-", color=line.get_color(),
+                    label=f"{grid}: {c['ns_per_interaction']:.1f} ns + {c['us_per_step']:.0f} us/step")
+    ax.set_xscale("log")
+    ax.set_xlabel("interactions per step of the busiest rank")
+    ax.set_ylabel("compute per interaction, ns (one host speed)")
+    ax.set_title(f"Scale sweep: {doc['setup']}, {doc['ranks']} x {doc['threads']}")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    print(f"written {png}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--grids", default="list,table,sorted", help="default list,table,sorted")
+    ap.add_argument("--setup", default="dambreak", choices=["dambreak", "still", "column"],
+                    help="default dambreak")
+    ap.add_argument("--scales", default="0.25,0.35,0.5,0.7,1,1.4,2",
+                    help="default 0.25,0.35,0.5,0.7,1,1.4,2")
+    ap.add_argument("--ranks", type=int, default=2, help="default 2")
+    ap.add_argument("--threads", type=int, default=1, help="default 1")
+    ap.add_argument("--rounds", type=int, default=3, help="default 3")
+    ap.add_argument("--steps", type=int, default=300, help="per run, default 300")
+    ap.add_argument("--interval", type=int, default=50, help="report interval, default 50")
+    ap.add_argument("--fit-only", nargs="+", metavar="REPORT", help="fit these sph reports")
+    ap.add_argument("--out", help="JSON output (default results/<host>/scale_sweep.json)")
+    ap.add_argument("--png", help="plot (default: the JSON's path with .png)")
+    args = ap.parse_args()
+    try:
+        if args.fit_only:
+            reports = [(p, load_report(p)) for p in args.fit_only]
+            first = reports[0][1]
+            setup = first.get("config", {}).get("setup")
+            ranks = first.get("config", {}).get("ranks")
+            threads = first.get("config", {}).get("threads")
+        else:
+            grids = [g for g in args.grids.split(",") if g]
+            bad = [g for g in grids if g not in ("list", "table", "sorted")]
+            if bad or not grids:
+                raise InputError(f"--grids '{args.grids}': expected list, table and/or sorted")
+            scales = positive_list(args.scales, "scales")
+            for name in ("ranks", "threads", "rounds", "steps", "interval"):
+                if getattr(args, name) < 1:
+                    raise InputError(f"--{name} {getattr(args, name)}: expected 1 or more")
+            if args.steps < 2 * args.interval:
+                raise InputError(f"--steps {args.steps} with --interval {args.interval}: expected "
+                                 f"at least two intervals (the first is dropped)")
+            if len(set(scales)) < 2:
+                raise InputError(f"--scales '{args.scales}': expected two or more scales")
+            setup, ranks, threads = args.setup, args.ranks, args.threads
+    except InputError as e:
+        print(f"scale-sweep.py: {e}", file=sys.stderr)
+        sys.exit(2)
+
+    host = socket.gethostname()
+    out = args.out or os.path.join(ROOT, "results", host, "scale_sweep.json")
+    if not args.fit_only:
+        reports = []
+        with tempfile.TemporaryDirectory() as tmp:
+            runs = list(itertools.product(grids, scales))
+            total = args.rounds * len(runs)
+            done = 0
+            for k in range(args.rounds):
+                # Rotating order: a drift of the host hits every grid and scale alike.
+                order = runs[k % len(runs):] + runs[:k % len(runs)]
+                for grid, scale in (order if k % 2 == 0 else order[::-1]):
+                    path = os.path.join(tmp, f"{grid}_{scale:g}_{k}.json")
+                    run_sph(grid, setup, scale, ranks, threads, args.steps, args.interval, path)
+                    with open(path) as f:
+                        reports.append((path, json.load(f)))
+                    done += 1
+                    print(f"scale-sweep: {done}/{total} done ({grid}, scale {scale:g}, round {k + 1})",
+                          file=sys.stderr, flush=True)
+    try:
+        pts = [p for path, doc in reports for p in points_of(path, doc)]
+        by_grid = {}
+        for p in pts:
+            by_grid.setdefault(p["grid"], []).append(p)
+        for grid, g in by_grid.items():
+            if len({p["scale"] for p in g}) < 2:
+                raise InputError(f"grid {grid}: reports at one scale only; a sweep needs two or more")
+    except InputError as e:
+        print(f"scale-sweep.py: {e}", file=sys.stderr)
+        sys.exit(2)
+    first = reports[0][1]
+    doc = {"benchmark": "scale-sweep", "schema": SCHEMA, "git_commit": git_commit(ROOT),
+           "sph_git_commit": first.get("git_commit"), "host": first.get("host", host),
+           "build": first.get("build"), "topology": first.get("topology"), "setup": setup,
+           "ranks": ranks, "threads": threads, "reports": len(reports),
+           "method": "per report interval after the first, the busiest rank's compute per step "
+                     "(phase timers but comm, wait, output, rebalance) over its speed-gauge "
+                     "factor, against its interactions and wall particles per step; weighted "
+                     "least squares relative to each point's cost",
+           "grids": {grid: fit(g) for grid, g in sorted(by_grid.items())}}
+    write_json(out, doc)
+    for grid, g in doc["grids"].items():
+        print(f"{grid}:")
+        for name, f in g["forms"].items():
+            if not f["identifiable"]:
+                print(f"  {name:20s} not identifiable from these scales")
+                continue
+            coef = ", ".join(f"{v:.3g} {k}" for k, v in f["coefficients"].items())
+            res = " ".join(f"{s}:{100 * r:+.1f}%" for s, r in f["median_residual_by_scale"].items())
+            print(f"  {name:20s} {coef}; rms {100 * f['relative_rms_residual']:.1f} %; "
+                  f"median residual by scale {res}")
+    plot(doc, args.png or os.path.splitext(out)[0] + ".png")
+
+
+if __name__ == "__main__":
+    main()
