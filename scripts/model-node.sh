@@ -168,14 +168,19 @@ calibrate_round() { # calibrate_round LABEL
         # main jobs, model/NOTES.md, session 30).
         sph 2 "cal_dambreak_s0.7_${grid}_$1" --setup dambreak --scale 0.7 --grid "$grid" \
             --steps "$c7_steps" --interval "$c_interval"
-        # And a smaller one (since session 54): a list or table step costs about 0.2-0.25 ms
-        # beyond its interactions (a scale sweep 0.25-2, 2 ranks, per unit of the speed gauge:
-        # interactions + const within 3 % at every scale, interactions alone -13 % at 0.25 to
-        # +5 % at 2; model/NOTES.md, session 54), about 11 % of a step at 0.35 and 2 % at 0.7.
-        # With only those two scales cross-validation could not tell it from run-to-run noise
-        # and kept interactions alone, which put the scale-2 dam breaks +11 and +19 % high in a
-        # quiet hour. At 0.25 it is about a fifth of a step. 300 steps, 0.06 in Froude time.
-        sph 2 "cal_dambreak_s0.25_${grid}_$1" --setup dambreak --scale 0.25 --grid "$grid" \
+        # And a smaller one on 1 rank (since session 54): a list or table step costs about
+        # 0.2-0.25 ms beyond its interactions (a scale sweep 0.25-2, 2 ranks, per unit of the
+        # speed gauge: interactions + const within 3 % at every scale, interactions alone -13 %
+        # at 0.25 to +5 % at 2; model/NOTES.md, session 54), about 11 % of a step at 0.35 and
+        # 2 % at 0.7. With only those two scales cross-validation could not tell it from
+        # run-to-run noise and kept interactions alone, which put the scale-2 dam breaks +11 and
+        # +19 % high in a quiet hour. At 0.25 it is about a fifth of a step. On 1 rank, because
+        # every other list or table run has 2: there owned particles and interactions move
+        # together, and cross-validation traded interactions for owned particles (8-11 ns an
+        # interaction + 0.7 us a particle, within a standard error of + const), which put the
+        # 2-rank table dam break 8 % under its 1-rank twin where the runs are within 3 %.
+        # 300 steps, 0.06 in Froude time.
+        sph 1 "cal_dambreak_s0.25_${grid}_$1" --setup dambreak --scale 0.25 --grid "$grid" \
             --steps "$c25_steps" --interval "$c_interval"
         sph 2 "cal_still_s0.5_${grid}_$1" --setup still --scale 0.5 --grid "$grid" \
             --steps "$cs_steps" --interval "$c_interval"
