@@ -605,14 +605,17 @@ def markdown(model, validation, args, out):
             (any("_s0.25_list_" in r["path"] or "_s0.25_table_" in r["path"]
                  for r in model["calibration_runs"]),
              "list-table-two-scales",
-             "Cell+List's and Cell+Table's dam breaks at a third scale, 0.25 (300 steps, rounds a "
-             "and b), since session 54: a scale sweep (0.25-2, 2 ranks, per unit of the speed "
-             "gauge) measured about 0.2-0.25 ms per list or table step beyond its interactions "
-             "(interactions + const within 3 % at every scale, interactions alone -13 % at 0.25 to "
-             "+5 % at 2), which the dam breaks at 0.35 and 0.7 alone could not tell from run-to-run "
-             "noise; added after a quiet main job put the scale-2 table dam breaks +11 and +19 % "
-             "high: **tuned**. Without them (sessions 46-53's calibration) on the same runs: {o} "
-             "(list-table-two-scales/validation.json)."),
+             "Cell+List's and Cell+Table's dam breaks at a third scale, 0.25, on 1 rank (300 steps, "
+             "rounds a and b), since session 54: a scale sweep (0.25-2, 2 ranks, per unit of the "
+             "speed gauge) measured about 0.2-0.25 ms per list or table step beyond its "
+             "interactions (interactions + const within 3 % at every scale, interactions alone "
+             "-13 % at 0.25 to +5 % at 2), which the dam breaks at 0.35 and 0.7 alone could not "
+             "tell from run-to-run noise; on 1 rank because on 2 ranks, as every other list or "
+             "table run, owned particles and interactions move together and cross-validation "
+             "traded one for the other (the 2-rank table dam break predicted 8 % under its 1-rank "
+             "twin). Added after the session's main jobs put the scale-2 table dam breaks +11 and "
+             "+19 % high and then the 2-rank one -10 to -12 %: **tuned**. Without them (sessions "
+             "46-53's calibration) on the same runs: {o} (list-table-two-scales/validation.json)."),
         ]
         for in_use, subdir, line in choices:
             o = untuned(subdir)
