@@ -20,33 +20,18 @@ diagnostic that takes the host's speed during the run out; reports without it ar
 host, build and topology).
 """
 import argparse
-import json
 import math
 import os
 import statistics
 import sys
 
-from script_common import git_commit, write_json
+from script_common import InputError, git_commit, load_report, write_json
 
 SCHEMA = 1
 
 
-class InputError(Exception):
-    """Bad input: one line naming it, exit 2, no file written."""
-
-
-def load_report(path):
-    try:
-        with open(path) as f:
-            doc = json.load(f)
-    except OSError as e:
-        raise InputError(f"cannot read {path}: {e.strerror}")
-    except json.JSONDecodeError as e:
-        raise InputError(f"{path} is not JSON ({e.msg} at line {e.lineno})")
-    if not isinstance(doc, dict) or doc.get("benchmark") != "sphmodel-validation":
-        raise InputError(f"{path} is not a sphmodel validation report (benchmark "
-                         f"'{doc.get('benchmark') if isinstance(doc, dict) else None}', expected "
-                         f"'sphmodel-validation')")
+def load_validation(path):
+    doc = load_report(path, "sphmodel-validation", "a sphmodel validation report")
     if not isinstance(doc.get("configurations"), list):
         raise InputError(f"{path} has no configurations list")
     return doc
@@ -153,7 +138,7 @@ def main():
         if len(args.reports) < 2:
             raise InputError(f"{len(args.reports)} validation report given: expected 2 or more "
                              f"(one job cannot tell bias from noise)")
-        reports = [(p, load_report(p)) for p in args.reports]
+        reports = [(p, load_validation(p)) for p in args.reports]
         summary = summarise(reports, args.own_speed, args.min_jobs)
     except InputError as e:
         print(f"model-bias.py: {e}", file=sys.stderr)

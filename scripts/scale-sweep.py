@@ -32,7 +32,7 @@ import subprocess
 import sys
 import tempfile
 
-from script_common import git_commit, pyplot, write_json
+from script_common import InputError, git_commit, load_report, pyplot, write_json
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build")), "bin")
@@ -40,10 +40,6 @@ SCHEMA = 1
 NOT_COMPUTE = {"comm_s", "wait_s", "output_s", "rebalance_s"}
 FORMS = {"interactions": ("interactions",), "interactions+const": ("interactions", "const"),
          "interactions+walls": ("interactions", "walls")}
-
-
-class InputError(Exception):
-    """Bad input: one line naming it, exit 2, no file written."""
 
 
 def positive_list(text, what, kind=float):
@@ -64,20 +60,6 @@ def run_sph(grid, setup, scale, ranks, threads, steps, interval, report):
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"scale-sweep.py: sph failed ({' '.join(cmd)}): {r.stderr.strip()}")
-
-
-def load_report(path):
-    try:
-        with open(path) as f:
-            doc = json.load(f)
-    except OSError as e:
-        raise InputError(f"cannot read {path}: {e.strerror}")
-    except json.JSONDecodeError as e:
-        raise InputError(f"{path} is not JSON ({e.msg} at line {e.lineno})")
-    if not isinstance(doc, dict) or doc.get("benchmark") != "sph":
-        raise InputError(f"{path} is not an sph report (benchmark "
-                         f"'{doc.get('benchmark') if isinstance(doc, dict) else None}', expected 'sph')")
-    return doc
 
 
 def points_of(path, doc):
@@ -201,7 +183,7 @@ def main():
     args = ap.parse_args()
     try:
         if args.fit_only:
-            reports = [(p, load_report(p)) for p in args.fit_only]
+            reports = [(p, load_report(p, "sph", "an sph report")) for p in args.fit_only]
             first = reports[0][1]
             setup = first.get("config", {}).get("setup")
             ranks = first.get("config", {}).get("ranks")

@@ -1,5 +1,5 @@
-"""What the measurement scripts share: the git commit, an atomic JSON write and matplotlib's
-pyplot (Agg)."""
+"""What the measurement scripts share: the git commit, an atomic JSON write, reading a report of
+one kind, and matplotlib's pyplot (Agg)."""
 import json
 import os
 import subprocess
@@ -10,6 +10,26 @@ def git_commit(root):
     """The commit of the checkout at root (every report carries it); empty outside git."""
     return subprocess.run(["git", "-C", root, "rev-parse", "HEAD"], capture_output=True,
                           text=True).stdout.strip()
+
+
+class InputError(Exception):
+    """Bad input: one line naming it, exit 2, no file written."""
+
+
+def load_report(path, benchmark, kind):
+    """The JSON report at path, which must be a `benchmark` report (`kind` names it in the error,
+    "an sph report"); InputError naming the file otherwise."""
+    try:
+        with open(path) as f:
+            doc = json.load(f)
+    except OSError as e:
+        raise InputError(f"cannot read {path}: {e.strerror}")
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path} is not JSON ({e.msg} at line {e.lineno})")
+    if not isinstance(doc, dict) or doc.get("benchmark") != benchmark:
+        found = doc.get("benchmark") if isinstance(doc, dict) else None
+        raise InputError(f"{path} is not {kind} (benchmark '{found}', expected '{benchmark}')")
+    return doc
 
 
 def write_json(path, doc):
