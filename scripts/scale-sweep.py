@@ -24,13 +24,14 @@ may run meanwhile.
 import argparse
 import itertools
 import json
-import math
 import os
 import socket
 import statistics
 import subprocess
 import sys
 import tempfile
+
+import numpy
 
 from script_common import InputError, git_commit, load_report, pyplot, write_json
 
@@ -86,17 +87,12 @@ def points_of(path, doc):
     return pts
 
 
-def solve(rows, ys):
-    """Weighted least squares by normal equations on a 2x2 or 1x1 system (rows already weighted)."""
-    n = len(rows[0])
-    a = [[sum(r[i] * r[j] for r in rows) for j in range(n)] for i in range(n)]
-    b = [sum(r[i] * y for r, y in zip(rows, ys)) for i in range(n)]
-    if n == 1:
-        return [b[0] / a[0][0]]
-    det = a[0][0] * a[1][1] - a[0][1] * a[1][0]
-    if abs(det) <= 1e-12 * abs(a[0][0] * a[1][1]):
-        return None
-    return [(b[0] * a[1][1] - b[1] * a[0][1]) / det, (a[0][0] * b[1] - a[1][0] * b[0]) / det]
+def column(p, term):
+    return {"interactions": p["interactions"], "const": 1.0, "walls": p["walls"]}[term]
+
+
+UNITS = {"interactions": ("ns_per_interaction", 1e9), "const": ("us_per_step", 1e6),
+         "walls": ("ns_per_wall_particle", 1e9)}
 
 
 def fit(pts):
@@ -108,24 +104,21 @@ def fit(pts):
             else p["compute_s"]
     scales = sorted({p["scale"] for p in pts})
     out = {"gauge_applied": reference is not None, "scales": scales, "forms": {}}
+    ys = numpy.array([p["compute_at_one_speed_s"] for p in pts])
     for name, terms in FORMS.items():
-        def column(p, t):
-            return {"interactions": p["interactions"], "const": 1.0, "walls": p["walls"]}[t]
-        ys = [p["compute_at_one_speed_s"] for p in pts]
-        rows = [[column(p, t) / y for t in terms] for p, y in zip(pts, ys)]
-        coef = solve(rows, [1.0] * len(ys))
-        if coef is None:
+        # Each row divided by its own cost: least squares of the relative residual.
+        X = numpy.array([[column(p, t) for t in terms] for p in pts]) / ys[:, None]
+        coef, _, rank, _ = numpy.linalg.lstsq(X, numpy.ones(len(pts)), rcond=None)
+        if rank < len(terms):
             out["forms"][name] = {"identifiable": False}
             continue
-        res = [sum(c * column(p, t) for c, t in zip(coef, terms)) / y - 1 for p, y in zip(pts, ys)]
-        units = {"interactions": ("ns_per_interaction", 1e9), "const": ("us_per_step", 1e6),
-                 "walls": ("ns_per_wall_particle", 1e9)}
+        res = X @ coef - 1
         out["forms"][name] = {
             "identifiable": True,
-            "coefficients": {units[t][0]: c * units[t][1] for c, t in zip(coef, terms)},
-            "relative_rms_residual": math.sqrt(sum(r * r for r in res) / len(res)),
-            "median_residual_by_scale": {f"{s:g}": statistics.median(
-                r for r, p in zip(res, pts) if p["scale"] == s) for s in scales}}
+            "coefficients": {UNITS[t][0]: float(c) * UNITS[t][1] for c, t in zip(coef, terms)},
+            "relative_rms_residual": float(numpy.sqrt(numpy.mean(res ** 2))),
+            "median_residual_by_scale": {f"{s:g}": float(statistics.median(
+                r for r, p in zip(res, pts) if p["scale"] == s)) for s in scales}}
     out["by_scale"] = [{
         "scale": s,
         "points": sum(1 for p in pts if p["scale"] == s),

@@ -1137,6 +1137,22 @@ TEST(ModelCli, HelpShowsDefaults) {
     EXPECT_NE(r.out.find("dambreak"), std::string::npos); // the default setup is shown
 }
 
+namespace {
+// Runs `command ARGS OUT_FLAG OUT` for each (ARGS, expected text) of `cases`: every one must exit
+// 2 with one line that contains the text, and write no file.
+void expect_bad_inputs(const std::string &command, const std::string &out_flag, const fs::path &out,
+                       const std::vector<std::pair<std::string, std::string>> &cases) {
+    for (const auto &[args, expect] : cases) {
+        const sphperf::testing::Run b =
+            run(command + " " + args + " " + out_flag + " " + out.string());
+        EXPECT_EQ(b.code, 2) << args << b.err;
+        EXPECT_EQ(b.err_lines(), 1) << b.err;
+        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
+        EXPECT_FALSE(fs::exists(out));
+    }
+}
+} // namespace
+
 // scripts/model-bias.py over synthetic validation reports: six jobs, one configuration predicted
 // 15 % high in every job (with the host's noise about it), one right on average (+-10 %). The
 // first is marked systematic, the second not; bad input exits 2 with one line and no file.
@@ -1196,19 +1212,13 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
 
     std::ofstream(dir / "malformed.json") << "{\"benchmark\": ";
     const std::string first = (dir / "validation_0.json").string();
-    for (const auto &[args, expect] : std::vector<std::pair<std::string, std::string>>{
-             {first, "expected 2 or more"},
-             {first + " " + (dir / "nope.json").string(), "nope.json"},
-             {first + " " + (dir / "malformed.json").string(), "is not JSON"},
-             {first + " " + reference_vm + "model.json", "not a sphmodel validation report"},
-             {reports + " --min-jobs 1", "--min-jobs 1"}}) {
-        const fs::path bad = dir / "bad.json";
-        const sphperf::testing::Run b = run(script + " " + args + " --json " + bad.string());
-        EXPECT_EQ(b.code, 2) << args << b.err;
-        EXPECT_EQ(b.err_lines(), 1) << b.err;
-        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
-        EXPECT_FALSE(fs::exists(bad));
-    }
+    expect_bad_inputs(
+        script, "--json", dir / "bad.json",
+        {{first, "expected 2 or more"},
+         {first + " " + (dir / "nope.json").string(), "nope.json"},
+         {first + " " + (dir / "malformed.json").string(), "is not JSON"},
+         {first + " " + reference_vm + "model.json", "not a sphmodel validation report"},
+         {reports + " --min-jobs 1", "--min-jobs 1"}});
     fs::remove_all(dir);
 }
 
@@ -1280,21 +1290,14 @@ TEST(ModelCli, ScaleSweepRecoversAPlantedFixedCostPerStep) {
 
     std::ofstream(dir / "malformed.json") << "{\"benchmark\": ";
     const std::string first = (dir / "sph_0.250000.json").string();
-    for (const auto &[args, expect] : std::vector<std::pair<std::string, std::string>>{
-             {"--fit-only " + first, "one scale only"},
-             {"--fit-only " + (dir / "nope.json").string(), "nope.json"},
-             {"--fit-only " + (dir / "malformed.json").string(), "is not JSON"},
-             {"--fit-only " + reference_vm + "model.json", "not an sph report"},
-             {"--scales 0.5,abc", "--scales '0.5,abc'"},
-             {"--scales 0.5", "two or more scales"},
-             {"--grids table,hash", "--grids 'table,hash'"},
-             {"--steps 50 --interval 50", "--steps 50"}}) {
-        const fs::path bad = dir / "bad.json";
-        const sphperf::testing::Run b = run(script + " " + args + " --out " + bad.string());
-        EXPECT_EQ(b.code, 2) << args << b.err;
-        EXPECT_EQ(b.err_lines(), 1) << b.err;
-        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
-        EXPECT_FALSE(fs::exists(bad));
-    }
+    expect_bad_inputs(script, "--out", dir / "bad.json",
+                      {{"--fit-only " + first, "one scale only"},
+                       {"--fit-only " + (dir / "nope.json").string(), "nope.json"},
+                       {"--fit-only " + (dir / "malformed.json").string(), "is not JSON"},
+                       {"--fit-only " + reference_vm + "model.json", "not an sph report"},
+                       {"--scales 0.5,abc", "--scales '0.5,abc'"},
+                       {"--scales 0.5", "two or more scales"},
+                       {"--grids table,hash", "--grids 'table,hash'"},
+                       {"--steps 50 --interval 50", "--steps 50"}});
     fs::remove_all(dir);
 }
