@@ -98,17 +98,18 @@ fresh_exchange() {
 
 # Validation steps per setup and scale, and calibration reach. A calibration run at scale s must
 # cover the validation's flow in Froude time (t_cal >= t_val sqrt(s / scale)); c_steps at half
-# scale, c35_steps at 0.35 (the list and table dam breaks: 0.15 s x sqrt(0.35) = 0.089 s, 920
-# steps with a margin). The model in use needs no more (its cost over time is the Froude-time
-# profile). The models reported beside it for comparison may select the memory-order term, which
-# needs the validation's simulated time (model/NOTES.md "Memory order"); a prediction they
-# cannot make from these runs is listed as such.
+# scale, c5_steps at 0.5 (the list and table dam breaks: 0.15 s x sqrt(0.5) = 0.106 s, 1100
+# steps with a margin), c35_steps at 0.35 (the 2-thread dam break: 0.089 s, 920 steps). The
+# model in use needs no more (its cost over time is the Froude-time profile). The models
+# reported beside it for comparison may select the memory-order term, which needs the
+# validation's simulated time (model/NOTES.md "Memory order"); a prediction they cannot make
+# from these runs is listed as such.
 if [ "$quick" -eq 1 ]; then
-    v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c35_steps=130 c7_steps=60 c25_steps=60 cs_steps=40
-    interval=20 c_interval=10
+    v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c5_steps=130 c35_steps=130 c7_steps=60
+    c25_steps=60 cs_steps=40 interval=20 c_interval=10
 else
-    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 c35_steps=920 c7_steps=300 c25_steps=300
-    cs_steps=300 interval=100 c_interval=20
+    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 c5_steps=1100 c35_steps=920 c7_steps=300
+    c25_steps=300 cs_steps=300 interval=100 c_interval=20
 fi
 # The validation runs under 3 s (the sorted still tanks and the 2-thread dam break) run 3 times
 # and the median run is validated: a slow spell of this VM (10-35 % over minutes) covers a whole
@@ -121,8 +122,10 @@ fi
 # -0.07; model/NOTES.md, session 42). Each one's first run alone is validated too (first-runs/).
 short_repeats=3
 # The model calibrates on 36 runs: Cell+List's and Cell+Table's in rounds a and b (since session
-# 44, their dam breaks at 0.35 since session 46, at 0.25 since session 54; round a only in sessions 38-43), Cell+Sorted's short ones (half-scale still tanks at 2, 3 and 4 ranks and at 2 threads, dam
-# breaks at 0.5 x 2 ranks and 0.7 x 2 threads) in rounds a, b and c; the level of each setup is
+# 44, their long dam breaks in round b since session 46, at 0.5 since session 55, at 0.25 since
+# session 54; round a only in sessions 38-43), Cell+Sorted's short ones (half-scale still tanks
+# at 2, 3 and 4 ranks and at 2 threads, dam breaks at 0.5 x 2 ranks and 0.7 x 2 threads) in
+# rounds a, b and c; the level of each setup is
 # its runs' pooled level (calibrate --run-level pooled: a mean, what a sum of step times pays;
 # sessions 43-44 took each repeated configuration's fastest run, validated beside in
 # fastest-repeat/, which sat below the long runs on the VM's Intel host: model/NOTES.md, session
@@ -144,10 +147,11 @@ more_runs=1
 # Calibration runs in two rounds, one before the validation runs and one amid them (Cell+Sorted's
 # short runs also in a third, between them): the machine's speed drifts by
 # 10-35 % over minutes, and the runs of two or three rounds set the level together. The dam
-# breaks on Cell+List and Cell+Table (at half scale 20 of the 40 s of two rounds) run at
-# scale 0.35 for 920 steps (1.2 s each against 4.5 s): re-run on session 16's stored runs with
-# such runs in place of the half-scale ones, wall median 3.0 -> 2.8 %, every list and table
-# dam break within 5.6 % (model/NOTES.md, session 16). Cell+Sorted's half-scale dam break
+# breaks on Cell+List and Cell+Table ran at half scale for 1500 steps until session 16 (20 of
+# the 40 s of two rounds), at scale 0.35 for 920 steps in sessions 16-54 (1.2 s each against
+# 4.5 s: re-run on session 16's stored runs, wall median 3.0 -> 2.8 %, every list and table dam
+# break within 5.6 %; model/NOTES.md, session 16), and at half scale again since session 55,
+# for 1100 steps (about 3 s each: below). Cell+Sorted's half-scale dam break
 # stays: it is cheap and covers the whole validation flow (1500 steps of 0.1 ms at every scale:
 # 0.21 in Froude time, the validation's 0.15); reaching furthest in Froude time of the model's
 # runs, it is also the workload trace (the 2-thread dam breaks at 0.35 run 920 steps so as not
@@ -156,12 +160,27 @@ calibrate_round() { # calibrate_round LABEL
     local t0=$SECONDS grid
     for grid in table list; do
         [ "$1" = a ] || [ "$more_runs" -eq 1 ] || continue
-        # In round b too since session 46: the dam break at 0.35 is the only list or table run
+        # In round b too since session 46: this long dam break is the only list or table run
         # past 0.036 s of Froude time (the validation's reaches 0.15), so one slow spell on
         # round a's set the level of every list and table dam break (+33 to +51 % in session
         # 46's first job, round a at 1.38 times the fit and round b at 0.80-0.86).
-        sph 2 "cal_dambreak_s0.35_${grid}_$1" --setup dambreak --scale 0.35 \
-            --grid "$grid" --steps "$c35_steps" --interval "$c_interval"
+        # At scale 0.5 since session 55 (0.35 before): the cost of an interaction rises over a
+        # dam break as the particles lose their memory order, and how much depends on the
+        # rank's working set, not on the Froude time alone. Cell+Table's search and id sort per
+        # interaction rose by 8.5 ns from 0.02 to 0.12 s of Froude time at 0.35 (all the fluid
+        # on one rank, about 1 MB of particles and tables), by 10.3 at 0.5 and 11-12 at 0.7 and 1
+        # (model/NOTES.md, session 55), so a profile measured at 0.35 put the scale-1 table dam
+        # breaks on 1 and 2 ranks 5-10 % low in every quiet job of session 54.
+        sph 2 "cal_dambreak_s0.5_${grid}_$1" --setup dambreak --scale 0.5 \
+            --grid "$grid" --steps "$c5_steps" --interval "$c_interval"
+        # The 0.35 run it replaced, for the comparison model only (long-dambreak-s035/): its
+        # time is the comparison's, not the calibration's.
+        if [ "$more_runs" -eq 1 ]; then
+            local c0=$SECONDS
+            sph 2 "cmp_dambreak_s0.35_${grid}_$1" --setup dambreak --scale 0.35 \
+                --grid "$grid" --steps "$c35_steps" --interval "$c_interval"
+            cmp_s=$((cmp_s + SECONDS - c0))
+        fi
         # A second, larger scale over the flow's start (0.035 in Froude time): at 0.35 a
         # particle has 33 interactions, at 1-2 it has 40, so the per-interaction cost at 0.35
         # alone carried its surface's per-particle share up to scale 2 (+9 to +21 % in 4 of 5
@@ -198,7 +217,8 @@ calibrate_round() { # calibrate_round LABEL
     sph 1x2 "cal_dambreak_s0.35_sorted_t2_$1" --setup dambreak --scale 0.35 --grid sorted \
         --steps "$c35_steps" --interval "$c_interval"
     sorted_runs "$1"
-    cal_s=$((cal_s + SECONDS - t0))
+    cal_s=$((cal_s + SECONDS - t0 - cmp_s))
+    cmp_s=0
 }
 # sorted_runs LABEL: Cell+Sorted's short calibration runs, in every round (a, b and c).
 sorted_runs() {
@@ -233,6 +253,7 @@ sorted_runs() {
         --steps "$cs_steps" --interval "$c_interval"
 }
 cal_s=0
+cmp_s=0 # a calibration round's comparison-only runs
 val_s=0
 # validate_run [--rep K] [--twin] RANKS[xTHREADS] NAME ARGS...: one validation run, as NAME, or
 # as the K-th of the short configurations' spread runs ($repeats/NAME.repK; keep_median picks
@@ -456,12 +477,16 @@ if [ "$more_runs" -eq 1 ]; then
     # Sessions 38-41's calibration: rounds a and b only, no round c, list and table round a.
     mapfile -t cal_reports < <(model_runs | grep -v -E '_c\.json$|_(list|table)_b\.json$')
     beside model_and_validate "$out/two-rounds" levelled-one-se froude
-    # Sessions 44-45's calibration: the list and table dam breaks at 0.35 in round a only.
-    mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.35_(list|table)_b\.json$')
-    beside model_and_validate "$out/s035-round-a" levelled-one-se froude
+    # Sessions 44-45's calibration: the long list and table dam breaks in round a only.
+    mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.5_(list|table)_b\.json$')
+    beside model_and_validate "$out/long-dambreak-round-a" levelled-one-se froude
+    # Sessions 46-54's calibration: the long list and table dam breaks at 0.35, not 0.5.
+    mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.5_(list|table)_';
+        ls "$runs"/cmp_dambreak_s0.35_*.json)
+    beside model_and_validate "$out/long-dambreak-s035" levelled-one-se froude
     mapfile -t cal_reports < <(model_runs)
 fi
-# Without the list and table dam breaks at scale 0.25 (sessions 46-53's calibration: 0.35 and 0.7).
+# Without the list and table dam breaks at scale 0.25 (sessions 46-53's calibration: two scales).
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.25_(list|table)_')
 beside model_and_validate "$out/list-table-two-scales" levelled-one-se froude
 mapfile -t cal_reports < <(model_runs)

@@ -571,15 +571,29 @@ def markdown(model, validation, args, out):
              "on the AMD host's 23 stored jobs 3.30 / 11.3 against 3.47 / 11.7 %): **tuned**. With "
              "round a only (sessions 38-43's calibration) on the same validation runs: {o} "
              "(round-a-list-table/validation.json)."),
-            (any("_s0.35_list_b" in r["path"] or "_s0.35_table_b" in r["path"]
+            (any("_s0.5_list_b" in r["path"] or "_s0.5_table_b" in r["path"]
                  for r in model["calibration_runs"]),
-             "s035-round-a",
-             "Cell+List's and Cell+Table's dam breaks at scale 0.35 in round b as well, added in "
-             "session 46 after its first main job, where they ran in round a only (sessions 44-45) and "
-             "a slow spell on round a (1.38 times the fit, round b 0.80-0.86) put every list and table "
-             "dam break 33-51 % high: past 0.036 s of Froude time they are the only list or table "
-             "runs: **tuned**. With round a's alone (sessions 44-45's calibration) on the same "
-             "validation runs: {o} (s035-round-a/validation.json)."),
+             "long-dambreak-round-a",
+             "Cell+List's and Cell+Table's long dam breaks (at scale 0.35 in sessions 46-54, 0.5 "
+             "since) in round b as well, added in session 46 after its first main job, where they "
+             "ran in round a only (sessions 44-45) and a slow spell on round a (1.38 times the fit, "
+             "round b 0.80-0.86) put every list and table dam break 33-51 % high: past 0.036 s of "
+             "Froude time they are the only list or table runs: **tuned**. With round a's alone "
+             "on the same validation runs: {o} (long-dambreak-round-a/validation.json)."),
+            (any("_s0.5_list_" in r["path"] or "_s0.5_table_" in r["path"]
+                 for r in model["calibration_runs"]),
+             "long-dambreak-s035",
+             "Cell+List's and Cell+Table's long dam breaks at scale 0.5 (1100 steps), since "
+             "session 55, 0.35 (920 steps) before: the cost of an interaction rises over a dam "
+             "break as the particles lose their memory order, and by how much depends on the "
+             "rank's working set (Cell+Table's search and id sort per interaction rose by 8.5 ns "
+             "over 0.02-0.12 s of Froude time at 0.35, 10.3 ns at 0.5, 11-12 ns at 0.7 and 1), so "
+             "a profile read at 0.35 put the scale-1 table dam breaks on 1 and 2 ranks 5-10 % "
+             "low in every quiet job of session 54. Chosen after two main jobs of session 55 "
+             "that ran both (median / max 3.4 / 9.7 and 2.6 / 9.5 % with 0.35, 3.7 / 7.8 and "
+             "2.8 / 6.3 % with 0.5): **tuned**. About 2 s more per run, 8 s of calibration. "
+             "With the 0.35 runs (sessions 46-54's calibration, run for this comparison only) on "
+             "the same validation runs: {o} (long-dambreak-s035/validation.json)."),
             (any("_s0.35_sorted_t2_" in r["path"] for r in model["calibration_runs"]),
              "two-thread-one-scale",
              "Cell+Sorted at 2 threads calibrated on its dam break at two scales (0.35 and 0.7) and "
