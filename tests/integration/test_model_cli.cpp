@@ -1301,3 +1301,95 @@ TEST(ModelCli, ScaleSweepRecoversAPlantedFixedCostPerStep) {
                        {"--steps 50 --interval 50", "--steps 50"}});
     fs::remove_all(dir);
 }
+
+// The memory order by scale (scale-sweep.py, session 55): runs of two scales to one Froude time,
+// each with a planted search cost that rises linearly in Froude time, the larger scale's twice
+// as fast, a flat pair-loop cost and planted descents; the host slower in one interval.
+TEST(ModelCli, ScaleSweepReadsTheMemoryOrdersRiseAtEqualFroudeTime) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("sphperf_memory_order_" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    const std::string script =
+        "/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) + "/scale-sweep.py";
+    constexpr double dt = 1e-4, reach = 0.134, pair_loops_ns = 15.0;
+    const std::map<double, double> rise_ns{{0.5, 6.0}, {2.0, 12.0}}; // over Froude time `reach`
+    const auto search_ns = [&](double scale, double tf) {
+        return 10.0 + rise_ns.at(scale) * tf / reach;
+    };
+    const auto descents = [](double tf) { return 0.05 + 0.2 * tf; };
+    std::string reports;
+    for (const auto &[scale, rise] : rise_ns) {
+        const double steps = 100 * std::sqrt(scale / 0.5); // 100 and 200: equal Froude times
+        nlohmann::json intervals = nlohmann::json::array();
+        for (int k = 0; k < 10; ++k) {
+            const double end = (k + 1) * steps * dt,
+                         tf = (end - 0.5 * steps * dt) / std::sqrt(scale);
+            const double interactions = 50000 * scale * scale;
+            // A host interrupt in one gauge sample: the window's median leaves its interval as is.
+            const double gauge = k == 5 ? 3e-5 : 1e-5; // read at a checkpoint
+            const auto rank = [&](double work) {
+                return nlohmann::json{
+                    {"steps", steps},
+                    {"interactions", work * interactions},
+                    {"virtual", 1000 * scale},
+                    {"field", work * 7000 * scale * scale},
+                    {"descents", work * interactions * descents(tf)},
+                    {"gauge_cpu_s", gauge},
+                    {"gauge_samples", 1},
+                    {"timers",
+                     {{"comp_s", 1e-9 * pair_loops_ns * work * interactions * steps},
+                      {"pairs_s", 0.7e-9 * search_ns(scale, tf) * work * interactions * steps},
+                      {"idsort_s", 0.3e-9 * search_ns(scale, tf) * work * interactions * steps},
+                      {"grid_s", 0.0},
+                      {"comm_s", 1.0},
+                      {"wait_s", 2.0}}}};
+            };
+            intervals.push_back({{"time_s", end}, {"ranks", {rank(1.0), rank(0.1)}}});
+        }
+        const nlohmann::json doc{{"benchmark", "sph"},
+                                 {"schema", 1},
+                                 {"host", "synthetic"},
+                                 {"config",
+                                  {{"grid", "table"},
+                                   {"scale", scale},
+                                   {"dt", dt},
+                                   {"setup", "dambreak"},
+                                   {"ranks", 2},
+                                   {"threads", 1}}},
+                                 {"intervals", intervals}};
+        const fs::path p = dir / ("sph_" + std::to_string(scale) + ".json");
+        std::ofstream(p) << doc.dump();
+        reports += ' ';
+        reports += p.string();
+    }
+    const fs::path out = dir / "sweep.json";
+    const sphperf::testing::Run r = run(script + " --fit-only" + reports + " --out " +
+                                        out.string() + " --png " + (dir / "sweep.png").string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("memory order"), std::string::npos) << r.out;
+    const auto mo = load(out)["grids"]["table"]["memory_order"];
+    const auto times = mo["froude_time_s"].get<std::vector<double>>();
+    ASSERT_EQ(times.size(), 5U);
+    // The span both scales cover: the second interval's midpoint (the first is dropped) to the
+    // last's.
+    EXPECT_NEAR(times.front(), 1.5 * 100 * dt / std::sqrt(0.5), 1e-9);
+    EXPECT_NEAR(times.back(), 9.5 * 100 * dt / std::sqrt(0.5), 1e-9);
+    ASSERT_EQ(mo["by_scale"].size(), 2U);
+    for (const auto &b : mo["by_scale"]) {
+        const double scale = b["scale"].get<double>();
+        const auto search = b["search_ns_per_interaction"].get<std::vector<double>>();
+        const auto loops = b["pair_loops_ns_per_interaction"].get<std::vector<double>>();
+        const auto desc = b["descents_per_interaction"].get<std::vector<double>>();
+        for (std::size_t k = 0; k < times.size(); ++k) {
+            EXPECT_NEAR(search[k], search_ns(scale, times[k]), 1e-6) << scale << " " << k;
+            EXPECT_NEAR(loops[k], pair_loops_ns, 1e-6) << scale << " " << k;
+            EXPECT_NEAR(desc[k], descents(times[k]), 1e-9) << scale << " " << k;
+        }
+        EXPECT_NEAR(b["search_rise_ns_per_interaction"].get<double>(),
+                    rise_ns.at(scale) * (times.back() - times.front()) / reach, 1e-6);
+    }
+    expect_bad_inputs(script, "--out", dir / "bad.json",
+                      {{"--froude-time 0", "--froude-time 0"},
+                       {"--froude-time -0.1", "expected a time above 0 s"}});
+    fs::remove_all(dir);
+}
