@@ -1226,6 +1226,24 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
 // interaction + 150 us, read at a host speed that changes between intervals (the gauge says by
 // how much). The fit recovers both, interactions alone leaves a residual falling with the scale,
 // and bad input exits 2 with one line and no file.
+namespace {
+// A synthetic 2-rank Cell+Table dam-break report of scale-sweep.py's tests, written to dir.
+fs::path write_sweep_report(const fs::path &dir, double scale, const nlohmann::json &config_extra,
+                            const nlohmann::json &intervals) {
+    nlohmann::json config{
+        {"grid", "table"}, {"scale", scale}, {"setup", "dambreak"}, {"ranks", 2}, {"threads", 1}};
+    config.update(config_extra);
+    const nlohmann::json doc{{"benchmark", "sph"},
+                             {"schema", 1},
+                             {"host", "synthetic"},
+                             {"config", config},
+                             {"intervals", intervals}};
+    const fs::path p = dir / ("sph_" + std::to_string(scale) + ".json");
+    std::ofstream(p) << doc.dump();
+    return p;
+}
+} // namespace
+
 TEST(ModelCli, ScaleSweepRecoversAPlantedFixedCostPerStep) {
     const fs::path dir =
         fs::temp_directory_path() / ("sphperf_scale_sweep_" + std::to_string(getpid()));
@@ -1255,20 +1273,8 @@ TEST(ModelCli, ScaleSweepRecoversAPlantedFixedCostPerStep) {
             // The busy rank and one with a tenth of the work (the fit reads the busy one).
             intervals.push_back({{"ranks", {rank(1.0), rank(0.1)}}});
         }
-        const nlohmann::json doc{{"benchmark", "sph"},
-                                 {"schema", 1},
-                                 {"host", "synthetic"},
-                                 {"config",
-                                  {{"grid", "table"},
-                                   {"scale", scale},
-                                   {"setup", "dambreak"},
-                                   {"ranks", 2},
-                                   {"threads", 1}}},
-                                 {"intervals", intervals}};
-        const fs::path p = dir / ("sph_" + std::to_string(scale) + ".json");
-        std::ofstream(p) << doc.dump();
-        reports += ' ';
-        reports += p.string();
+        reports +=
+            ' ' + write_sweep_report(dir, scale, nlohmann::json::object(), intervals).string();
     }
     const fs::path out = dir / "sweep.json";
     const std::string png = (dir / "sweep.png").string();
@@ -1346,21 +1352,7 @@ TEST(ModelCli, ScaleSweepReadsTheMemoryOrdersRiseAtEqualFroudeTime) {
             };
             intervals.push_back({{"time_s", end}, {"ranks", {rank(1.0), rank(0.1)}}});
         }
-        const nlohmann::json doc{{"benchmark", "sph"},
-                                 {"schema", 1},
-                                 {"host", "synthetic"},
-                                 {"config",
-                                  {{"grid", "table"},
-                                   {"scale", scale},
-                                   {"dt", dt},
-                                   {"setup", "dambreak"},
-                                   {"ranks", 2},
-                                   {"threads", 1}}},
-                                 {"intervals", intervals}};
-        const fs::path p = dir / ("sph_" + std::to_string(scale) + ".json");
-        std::ofstream(p) << doc.dump();
-        reports += ' ';
-        reports += p.string();
+        reports += ' ' + write_sweep_report(dir, scale, {{"dt", dt}}, intervals).string();
     }
     const fs::path out = dir / "sweep.json";
     const sphperf::testing::Run r = run(script + " --fit-only" + reports + " --out " +
