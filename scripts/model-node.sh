@@ -166,11 +166,12 @@ calibrate_round() { # calibrate_round LABEL
         # 46's first job, round a at 1.38 times the fit and round b at 0.80-0.86).
         # At scale 0.5 since session 55 (0.35 before): the cost of an interaction rises over a
         # dam break as the particles lose their memory order, and how much depends on the
-        # rank's working set, not on the Froude time alone. Cell+Table's search and id sort per
-        # interaction rose by 8.5 ns from 0.02 to 0.12 s of Froude time at 0.35 (all the fluid
-        # on one rank, about 1 MB of particles and tables), by 10.3 at 0.5 and 11-12 at 0.7 and 1
-        # (model/NOTES.md, session 55), so a profile measured at 0.35 put the scale-1 table dam
-        # breaks on 1 and 2 ranks 5-10 % low in every quiet job of session 54.
+        # run's size, not on the Froude time alone: Cell+Table's search and id sort per
+        # interaction rose by 12.2 ns from 0.013 to 0.152 s of Froude time at 0.35, by 13.7 at
+        # 0.5, 16.6 and 17.4 at 0.7 and 1 (scripts/scale-sweep.py --froude-time,
+        # results/reference/vm/memory_order_sweep.json; model/NOTES.md, session 55), so a profile
+        # measured at 0.35 put the scale-1 table dam breaks on 1 and 2 ranks 5-10 % low in every
+        # quiet job of session 54. 0.7 would see all of scale 1's rise, for about 16 s more.
         sph 2 "cal_dambreak_s0.5_${grid}_$1" --setup dambreak --scale 0.5 \
             --grid "$grid" --steps "$c5_steps" --interval "$c_interval"
         # The 0.35 run it replaced, for the comparison model only (long-dambreak-s035/): its
