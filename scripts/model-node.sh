@@ -171,7 +171,7 @@ calibrate_round() { # calibrate_round LABEL
         # 0.5, 16.6 and 17.4 at 0.7 and 1 (scripts/scale-sweep.py --froude-time,
         # results/reference/vm/memory_order_sweep.json; model/NOTES.md, session 55), so a profile
         # measured at 0.35 put the scale-1 table dam breaks on 1 and 2 ranks 5-10 % low in every
-        # quiet job of session 54. 0.7 would see all of scale 1's rise, for about 16 s more.
+        # quiet job of session 54. At 0.7 it would see all of scale 1's rise (a lead, NOTES).
         sph 2 "cal_dambreak_s0.5_${grid}_$1" --setup dambreak --scale 0.5 \
             --grid "$grid" --steps "$c5_steps" --interval "$c_interval"
         # The 0.35 run it replaced, for the comparison model only (long-dambreak-s035/): its
