@@ -560,6 +560,18 @@ json disorder_by_setup(const std::vector<SphRun> &runs) {
         d["method"] = "descents per interaction summed over ranks, mean of the runs; predict "
                       "reads it at the target's simulated time (acoustic time for another "
                       "spacing), not at its Froude time";
+        // Per column too (reports since session 56): predict gives each rank the memory order
+        // of its own columns.
+        if (const auto by_column = column_disorder_of(v)) {
+            d["by_column"] = by_column->to_json();
+            d["by_column"]["method"] =
+                "interactions and descents per cell column, mean of the runs, carried to the "
+                "target by Froude time; compute per interaction = intercept + slope x descents "
+                "per interaction, fitted (one level per run) on the rank-intervals holding at "
+                "least a tenth of the interactions in the later half of each run; predict "
+                "multiplies each rank's compute by (intercept + slope D_rank) / (intercept + "
+                "slope D_all), D of the rank's columns and of all of them";
+        }
         out[key.first][key.second] = d;
     }
     return out;

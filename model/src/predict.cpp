@@ -32,7 +32,10 @@ constexpr double blocking_shifts_per_step = 2;
 struct Costs {
     LinearFit pairs, exports, interactions, compute, cell_moves;
     std::optional<Disorder> disorder; // list and table: memory order against simulated time
-    double delta = 0.01;              // target spacing (acoustic time of the disorder record)
+    // List and table: the memory order per column, so each rank's compute per interaction
+    // follows its own columns' (predict --rank-disorder columns).
+    std::optional<ColumnDisorder> column_disorder;
+    double delta = 0.01; // target spacing (acoustic time of the disorder record)
     // Measured / fitted compute of this setup by Froude time (calibrate --time-profile froude);
     // empty: none. The target's scale turns its time into Froude time.
     std::vector<std::pair<double, double>> profile;
@@ -133,6 +136,12 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             c.disorder = Disorder::from_json(model.at("disorder").at(setup).at(grid),
                                              "model disorder " + setup + "/" + grid);
         }
+        if (model.contains("disorder") && model.at("disorder").contains(setup) &&
+            model.at("disorder").at(setup).contains(grid) &&
+            model.at("disorder").at(setup).at(grid).contains("by_column"))
+            c.column_disorder =
+                ColumnDisorder::from_json(model.at("disorder").at(setup).at(grid).at("by_column"),
+                                          "model disorder " + setup + "/" + grid + "/by_column");
         c.comm = CommModel::from_profile(model.at("machine"));
         c.exchange = ExchangeModel::from_profile(model.at("machine"));
         c.record_bytes = model.at("record_bytes").get<double>();
@@ -177,6 +186,7 @@ struct RankStep {
     double field = 0, walls = 0, ghost = 0, exported = 0, exported_regression = 0, pairs = 0,
            pairs_regression = 0, interactions = 0, compute_s = 0, comm_s = 0, wait_s = 0,
            idle_s = 0;
+    double order_factor = 1; // the rank's columns' memory order over the whole water's
 };
 
 // The time-sharing overhead at this many processes x threads (a factor on a shared core's
@@ -242,9 +252,11 @@ std::vector<int> placement_of(int P, int nodes, int threads, int cores) {
 }
 
 // One step of every rank at simulated time t, from the workload of the slabs.
+// `order`: each rank's compute per interaction over the whole water's (ColumnDisorder), empty:
+// 1 for every rank.
 std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const WorkDensity &density,
                                    const Costs &c, int threads, int nodes, double t,
-                                   double &step_s) {
+                                   const std::vector<double> &order, double &step_s) {
     const double disorder = c.disorder ? c.disorder->at(t, c.delta) : 0.0;
     const int P = static_cast<int>(loads.size());
     // Each node places and time-shares its own block of ranks.
@@ -295,7 +307,8 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         std::vector<double> x;
         for (const auto &t : c.compute.terms)
             x.push_back(w.value(t));
-        s.compute_s = std::max(0.0, c.compute.predict(x)) * profile_factor(c, t);
+        s.order_factor = order.empty() ? 1.0 : order[static_cast<std::size_t>(r)];
+        s.compute_s = std::max(0.0, c.compute.predict(x)) * profile_factor(c, t) * s.order_factor;
         compute.push_back(s.compute_s);
         field.push_back(s.field);
     }
@@ -534,6 +547,14 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                        source_time(static_cast<double>(steps) * req.dt, trace.scale, req.scale));
     if (c.disorder)
         (void)c.disorder->at(static_cast<double>(steps) * req.dt, req.delta);
+    if (req.rank_disorder != "columns" && req.rank_disorder != "none")
+        throw UsageError("--rank-disorder '" + req.rank_disorder + "': expected columns or none");
+    if (req.rank_disorder == "none")
+        c.column_disorder.reset();
+    if (c.column_disorder)
+        (void)c.column_disorder->rank_factors(static_cast<double>(steps) * req.dt, req.scale,
+                                              probe.cell_size, probe.tank_length, probe.columns,
+                                              sph::equal_cuts(1, probe.columns));
     if (const double need = static_cast<double>(steps) * req.dt / std::sqrt(req.scale);
         !c.profile.empty() && need > c.profile_end * (1 + 1e-9))
         throw UsageError("the calibration's " + req.grid + " runs of " + req.setup +
@@ -566,7 +587,10 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"trace_scale", trace.scale},
                            {"trace_delta", trace.delta},
                            {"jitter_k_sqrt_s", c.jitter_k_sqrt_s},
-                           {"compute_time_profile", c.profile.empty() ? "none" : "froude"}};
+                           {"compute_time_profile", c.profile.empty() ? "none" : "froude"},
+                           {"rank_disorder", c.column_disorder ? "columns" : "none"}};
+    if (c.column_disorder)
+        out["model_source"]["rank_disorder_source"] = c.column_disorder->source;
     out["fluid_particles"] = probe.fluid_particles;
     out["request"]["time_sharing_overhead"] = req.time_sharing_overhead;
     if (c.sharing_replay)
@@ -640,6 +664,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
                 const double n = static_cast<double>(s1 - s0);
                 std::vector<RankStep> mean(static_cast<std::size_t>(P));
+                for (auto &m : mean)
+                    m.order_factor = 0; // a mean over the samples below
                 double step_mean = 0;
                 for (int k = 0; k < samples_per_interval; ++k) {
                     const double at_step =
@@ -655,9 +681,14 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                         rescale_columns(src, trace.cell_size, trace.tank_length, tgt.cell_size,
                                         tgt.tank_length, tgt.columns, tgt.fluid_particles);
                     double step_s = 0;
+                    const std::vector<double> order =
+                        c.column_disorder
+                            ? c.column_disorder->rank_factors(t, req.scale, tgt.cell_size,
+                                                              tgt.tank_length, tgt.columns, cuts)
+                            : std::vector<double>{};
                     const auto ranks =
                         predict_step(recut(cols, tgt.wall_columns, cuts), density_at(trace, ts), c,
-                                     req.threads, req.nodes, t, step_s);
+                                     req.threads, req.nodes, t, order, step_s);
                     step_mean += step_s / samples_per_interval;
                     for (std::size_t r = 0; r < ranks.size(); ++r) {
                         auto &m = mean[r];
@@ -674,6 +705,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                                   {&m.pairs_regression, v.pairs_regression},
                                                   {&m.interactions, v.interactions},
                                                   {&m.compute_s, v.compute_s},
+                                                  {&m.order_factor, v.order_factor},
                                                   {&m.comm_s, v.comm_s},
                                                   {&m.wait_s, v.wait_s},
                                                   {&m.idle_s, v.idle_s}})
@@ -693,6 +725,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                   {"pairs", m.pairs},
                                   {"pairs_regression", m.pairs_regression},
                                   {"interactions", m.interactions},
+                                  {"memory_order_factor", m.order_factor},
                                   {"compute_s", m.compute_s * n},
                                   {"comm_s", m.comm_s * n},
                                   {"wait_s", m.wait_s * n},

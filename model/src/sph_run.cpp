@@ -86,6 +86,11 @@ void from_json(const json &j, IntervalStats &iv) {
     iv.time_s = figure(j, "time_s");
     iv.columns = j.at("columns").get<std::vector<double>>();
     iv.ranks = j.at("ranks").get<std::vector<RankStats>>();
+    // Stored-list grids since session 56: interactions and descents per column.
+    if (j.contains("column_interactions")) {
+        iv.column_interactions = j.at("column_interactions").get<std::vector<double>>();
+        iv.column_descents = j.at("column_descents").get<std::vector<double>>();
+    }
 }
 
 void from_json(const json &j, RunConfig &c) {
@@ -281,6 +286,11 @@ SphRun load_sph_run(const std::filesystem::path &path) {
         if (iv.columns.size() != cols)
             bad("interval at step " + std::to_string(iv.step) + " has " +
                 std::to_string(iv.columns.size()) + " columns, expected " + std::to_string(cols));
+        if (!iv.column_interactions.empty() &&
+            (iv.column_interactions.size() != cols || iv.column_descents.size() != cols))
+            bad("interval at step " + std::to_string(iv.step) +
+                " has column_interactions or column_descents not of config/cell_columns = " +
+                std::to_string(cols) + " entries");
         if (iv.ranks.size() != static_cast<std::size_t>(r.config.ranks))
             bad("interval at step " + std::to_string(iv.step) + " has " +
                 std::to_string(iv.ranks.size()) +

@@ -161,6 +161,13 @@ int run(int argc, char **argv) {
            "With --time-sharing-overhead replay: the scheduler slice of a computing rank, ms "
            "(default 1.5: the kernel's EEVDF base slice on 2 CPUs; tuned, model/NOTES.md)")
         ->check(FinitePositive);
+    pre->add_option("--rank-disorder", q.rank_disorder,
+                    "List and table: each rank's compute per interaction from the memory order "
+                    "of its own columns (columns: the calibration's per-column descents, where "
+                    "the model has them), or every rank the whole run's (none: the model "
+                    "before session 56)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"columns", "none"}));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

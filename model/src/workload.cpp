@@ -1,6 +1,7 @@
 #include "sphperf/model/workload.hpp"
 
 #include "sphperf/errors.hpp"
+#include "sphperf/model/fit.hpp"
 #include "sphperf/sph/config.hpp"
 #include "sphperf/sph/domain.hpp"
 #include "sphperf/sph/setup.hpp"
@@ -342,6 +343,166 @@ Disorder disorder_of(const std::vector<SphRun> &runs) {
             }
             d.per_interaction[k] += (inter > 0 ? desc / inter : 0.0) / double(runs.size());
         }
+    }
+    return d;
+}
+
+} // namespace sphperf::model
+
+namespace sphperf::model {
+
+std::vector<double> ColumnDisorder::rank_factors(double target_time_s, double target_scale,
+                                                 double target_cell, double target_tank,
+                                                 int target_columns,
+                                                 const std::vector<int> &cuts) const {
+    const double ts = source_time(target_time_s, scale, target_scale);
+    if (times_s.empty() || ts > times_s.back() * (1 + 1e-9))
+        throw UsageError("the model's per-column memory order (" + source + ") ends at " +
+                         num(end_time()) + " s of simulated time at scale " + num(scale) +
+                         ", this prediction needs " + num(ts) +
+                         " s: calibrate with a list or table run that long, or predict with "
+                         "--rank-disorder none");
+    const auto [lo, hi, w] = bracket(times_s, ts);
+    auto at = [&, lo = lo, hi = hi, w = w](const std::vector<std::vector<double>> &v) {
+        std::vector<double> out(v[lo].size());
+        for (std::size_t k = 0; k < out.size(); ++k)
+            out[k] = (1 - w) * v[lo][k] + w * v[hi][k];
+        return out;
+    };
+    const auto src_i = at(interactions), src_d = at(descents);
+    const double total_i = std::accumulate(src_i.begin(), src_i.end(), 0.0);
+    const double total_d = std::accumulate(src_d.begin(), src_d.end(), 0.0);
+    // Both carried by the same rule, so a column's descents per interaction keep.
+    const auto inter = rescale_columns(src_i, cell_size, tank_length, target_cell, target_tank,
+                                       target_columns, total_i);
+    const auto desc = rescale_columns(src_d, cell_size, tank_length, target_cell, target_tank,
+                                      target_columns, total_d);
+    const double base = intercept_s + slope_s * (total_i > 0 ? total_d / total_i : 0.0);
+    std::vector<double> out;
+    for (std::size_t r = 0; r + 1 < cuts.size(); ++r) {
+        double i = 0, d = 0;
+        for (int c = cuts[r]; c < cuts[r + 1]; ++c) {
+            i += inter[static_cast<std::size_t>(c)];
+            d += desc[static_cast<std::size_t>(c)];
+        }
+        const double own = intercept_s + slope_s * (i > 0 ? d / i : 0.0);
+        out.push_back(i > 0 && base > 0 && own > 0 ? own / base : 1.0);
+    }
+    return out;
+}
+
+nlohmann::json ColumnDisorder::to_json() const {
+    return {{"source", source},
+            {"scale", scale},
+            {"cell_size", cell_size},
+            {"tank_length", tank_length},
+            {"times_s", times_s},
+            {"column_interactions", interactions},
+            {"column_descents", descents},
+            {"cost_per_interaction",
+             {{"intercept_s", intercept_s},
+              {"intercept_se_s", intercept_se_s},
+              {"slope_s_per_descent_per_interaction", slope_s},
+              {"slope_se_s_per_descent_per_interaction", slope_se_s},
+              {"r2", r2},
+              {"points", points}}}};
+}
+
+ColumnDisorder ColumnDisorder::from_json(const nlohmann::json &j, const std::string &where) {
+    ColumnDisorder d;
+    try {
+        d.source = j.value("source", "");
+        d.scale = j.at("scale").get<double>();
+        d.cell_size = j.at("cell_size").get<double>();
+        d.tank_length = j.at("tank_length").get<double>();
+        d.times_s = j.at("times_s").get<std::vector<double>>();
+        d.interactions = j.at("column_interactions").get<std::vector<std::vector<double>>>();
+        d.descents = j.at("column_descents").get<std::vector<std::vector<double>>>();
+        const auto &c = j.at("cost_per_interaction");
+        d.intercept_s = c.at("intercept_s").get<double>();
+        d.slope_s = c.at("slope_s_per_descent_per_interaction").get<double>();
+        d.intercept_se_s = c.value("intercept_se_s", 0.0);
+        d.slope_se_s = c.value("slope_se_s_per_descent_per_interaction", 0.0);
+        d.r2 = c.value("r2", 0.0);
+        d.points = c.value("points", std::size_t{0});
+    } catch (const nlohmann::json::exception &e) {
+        throw UsageError(where + ": " + e.what());
+    }
+    bool ok = !d.times_s.empty() && d.times_s.size() == d.interactions.size() &&
+              d.times_s.size() == d.descents.size() && d.scale > 0 && d.cell_size > 0 &&
+              d.tank_length > 0 && std::is_sorted(d.times_s.begin(), d.times_s.end());
+    for (std::size_t k = 0; ok && k < d.times_s.size(); ++k)
+        ok = !d.interactions[k].empty() && d.interactions[k].size() == d.descents[k].size() &&
+             d.interactions[k].size() == d.interactions[0].size();
+    if (!ok)
+        throw UsageError(where + ": needs increasing times, one column_interactions and one "
+                                 "column_descents histogram of one length per time, and positive "
+                                 "scale, cell_size and tank_length");
+    return d;
+}
+
+std::optional<ColumnDisorder> column_disorder_of(const std::vector<SphRun> &runs) {
+    if (runs.empty())
+        return std::nullopt;
+    for (const auto &r : runs)
+        for (const auto &iv : r.intervals)
+            if (iv.column_interactions.empty())
+                return std::nullopt;
+    const SphRun &first = runs.front();
+    ColumnDisorder d;
+    d.scale = first.config.scale;
+    d.cell_size = first.config.cell_size;
+    d.tank_length = first.config.tank_length;
+    const std::size_t cols = first.intervals.front().column_interactions.size();
+    for (const auto &iv : first.intervals)
+        d.times_s.push_back(iv.time_s);
+    d.interactions.assign(d.times_s.size(), std::vector<double>(cols, 0.0));
+    d.descents = d.interactions;
+    std::vector<std::vector<double>> X;
+    std::vector<double> y;
+    std::vector<int> classes;
+    for (std::size_t run = 0; run < runs.size(); ++run) {
+        const SphRun &r = runs[run];
+        if (r.intervals.size() != d.times_s.size() || r.config.scale != d.scale ||
+            r.intervals.front().column_interactions.size() != cols)
+            throw std::invalid_argument("column_disorder_of: runs of different record times, "
+                                        "scales or columns");
+        d.source += (d.source.empty() ? "" : ", ") + r.path;
+        const double half = 0.5 * r.intervals.back().time_s;
+        for (std::size_t k = 0; k < r.intervals.size(); ++k) {
+            const auto &iv = r.intervals[k];
+            for (std::size_t c = 0; c < cols; ++c) {
+                d.interactions[k][c] += iv.column_interactions[c] / double(runs.size());
+                d.descents[k][c] += iv.column_descents[c] / double(runs.size());
+            }
+            if (iv.time_s < half)
+                continue;
+            double all = 0;
+            for (const auto &rk : iv.ranks)
+                all += rk.interactions;
+            // The ranks holding the water: a rank with a few front particles costs its fixed
+            // part, not its interactions.
+            for (const auto &rk : iv.ranks)
+                if (rk.steps >= 1 && rk.field_mean > 0 && rk.interactions >= 0.1 * all &&
+                    rk.interactions > 0) {
+                    X.push_back({1.0, rk.descents / rk.interactions});
+                    y.push_back(rk.compute_s() / rk.steps / rk.interactions);
+                    classes.push_back(static_cast<int>(run));
+                }
+        }
+    }
+    if (y.size() < 4)
+        return std::nullopt;
+    try {
+        const LevelledFit f = fit_levelled(X, y, {"const", "descents_per_interaction"}, classes);
+        d.intercept_s = f.fit.coef[0];
+        d.slope_s = f.fit.coef[1];
+        d.intercept_se_s = f.fit.se[0];
+        d.slope_se_s = f.fit.se[1];
+        d.r2 = f.fit.r2;
+        d.points = f.fit.points;
+    } catch (const std::invalid_argument &) {
+        return std::nullopt;
     }
     return d;
 }

@@ -21,7 +21,7 @@ constexpr char rank_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'K', '1'};
 // 2: the rank records split comm by exchange (RankInterval::fields changed); 3: they carry the
 // CPU time before each shift and the exchange benchmark's prediction apart; 4: the speed
 // gauge's samples.
-constexpr char record_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'C', '4'};
+constexpr char record_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'C', '5'};
 
 // Native-endian binary writer: the files are read back by the same build on the same machine
 // (the manifest's commit is checked), so no portable encoding is needed.
@@ -213,6 +213,8 @@ std::string serialise(const RecordSoFar &r) {
         o.put(iv.step);
         o.put(iv.time_s);
         o.put(iv.columns);
+        o.put(iv.column_interactions);
+        o.put(iv.column_descents);
         std::vector<double> packed;
         for (const auto &rk : iv.ranks) {
             const auto a = rk.pack();
@@ -241,6 +243,8 @@ RecordSoFar deserialise_record(const std::string &bytes, const std::string &wher
         iv.step = in.get<std::int64_t>();
         iv.time_s = in.get<double>();
         iv.columns = in.vec<double>();
+        iv.column_interactions = in.vec<double>();
+        iv.column_descents = in.vec<double>();
         const auto packed = in.vec<double>();
         if (packed.size() % RankInterval::fields != 0)
             throw UsageError(where + ": interval " + std::to_string(k) +

@@ -213,6 +213,10 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
 
     for (const auto &iv : run.intervals) {
         nlohmann::json jiv{{"step", iv.step}, {"time_s", iv.time_s}, {"columns", iv.columns}};
+        if (!iv.column_interactions.empty()) {
+            jiv["column_interactions"] = iv.column_interactions;
+            jiv["column_descents"] = iv.column_descents;
+        }
         for (const auto &r : iv.ranks) {
             nlohmann::json jr{{"steps", r.steps},
                               {"field", r.field},

@@ -48,6 +48,9 @@ void expect_same_record(const nlohmann::json &a, const nlohmann::json &b, bool s
     for (std::size_t k = 0; k < a["intervals"].size(); ++k) {
         const auto &x = a["intervals"][k], &y = b["intervals"][k];
         EXPECT_EQ(x["columns"], y["columns"]) << "interval " << k;
+        for (const char *key : {"column_interactions", "column_descents"})
+            EXPECT_EQ(x.value(key, nlohmann::json()), y.value(key, nlohmann::json()))
+                << "interval " << k << " " << key;
         for (std::size_t r = 0; r < x["ranks"].size(); ++r)
             for (const char *key : {"field", "pairs", "interactions", "descents", "cell_moves",
                                     "exported", "ghost", "migrated", "virtual"})

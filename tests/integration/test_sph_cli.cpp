@@ -87,6 +87,19 @@ TEST(SphCli, CountAndMassConservedAndFrontIndependentOfRanks) {
                 EXPECT_EQ(r["escaped"], 0) << "fluid outside the tank";
             EXPECT_EQ(columns, fluid);
             EXPECT_EQ(iv["ranks"].size(), static_cast<std::size_t>(ranks));
+            // The stored lists' per-column counts add up to the ranks' (the model's per-rank
+            // memory order re-cuts them into slabs).
+            for (const char *key : {"interactions", "descents"}) {
+                double by_rank = 0, by_column = 0;
+                for (const auto &r : iv["ranks"])
+                    by_rank += r[key].get<double>();
+                const auto &col = iv.at(std::string("column_") + key);
+                ASSERT_EQ(col.size(), iv["columns"].size());
+                for (const auto &c : col)
+                    by_column += c.get<double>();
+                EXPECT_GT(by_rank, 0) << key;
+                EXPECT_NEAR(by_column, by_rank, 1e-9 * by_rank) << key << ", " << ranks;
+            }
         }
         const auto &mass = j["physics"]["mass"];
         for (const auto &m : mass)
@@ -133,6 +146,7 @@ TEST(SphCli, SortedGridIsIndependentOfThreadsAndRanks) {
         ASSERT_FALSE(j.is_null());
     ASSERT_FALSE(table.is_null());
     EXPECT_EQ(runs[0]["config"]["grid"], "sorted");
+    EXPECT_FALSE(runs[0]["intervals"][0].contains("column_descents")); // no stored lists
     const auto &front = runs[0]["physics"]["front_x"];
     const auto &ke = runs[0]["physics"]["kinetic_energy"];
     for (std::size_t k = 1; k < runs.size(); ++k) {

@@ -148,6 +148,45 @@ TYPED_TEST(GridTest, StaysExactAsParticlesMoveLeaveAndArrive) {
     }
 }
 
+// The stored lists' per-column counts (the model's per-rank memory order): each column holds
+// exactly the brute-force neighbours of the owned particles filed in it and the descents add
+// up to the search's, at 1 and 2 threads (the threads' blocks are summed column by column).
+template <class G> void check_column_counts() {
+    Particles p = random_configuration(7, 600, 150);
+    // Shuffle the ids' memory order a little so that descents are not all zero.
+    std::mt19937 rng(11);
+    for (int k = 0; k < 200; ++k) {
+        const auto a = rng() % p.owned(), b = rng() % p.owned();
+        std::swap(p.id[a], p.id[b]);
+    }
+    std::vector<std::uint64_t> expected(static_cast<std::size_t>(window.cols()), 0);
+    for (std::size_t i = 0; i < p.owned(); ++i)
+        for (std::size_t j = 0; j < p.size(); ++j) {
+            const double dx = p.x[i] - p.x[j], dy = p.y[i] - p.y[j];
+            if (i != j && interacting(p.kind[i], p.kind[j]) && dx * dx + dy * dy < cell * cell)
+                ++expected[static_cast<std::size_t>(window.column_of(p.x[i]) - window.col_begin)];
+        }
+    const int threads_before = omp_get_max_threads();
+    for (int threads : {1, 2}) {
+        omp_set_num_threads(threads);
+        G grid;
+        NeighbourList nl;
+        grid.update(p, window);
+        nl.counts = find_neighbours(grid, p, window, cell, nl);
+        EXPECT_EQ(nl.column_begin, window.col_begin);
+        EXPECT_EQ(nl.column_entries, expected) << threads << " threads";
+        EXPECT_EQ(
+            std::accumulate(nl.column_descents.begin(), nl.column_descents.end(), std::uint64_t{0}),
+            nl.counts.descents);
+        EXPECT_GT(nl.counts.descents, 0u);
+    }
+    omp_set_num_threads(threads_before);
+}
+TEST(StoredLists, CountInteractionsAndDescentsPerColumn) {
+    check_column_counts<CellList>();
+    check_column_counts<CellTable>();
+}
+
 TEST(CellWindow, FilesOutsidePositionsInEdgeCells) {
     EXPECT_EQ(window.column_of(-5.0), 2);
     EXPECT_EQ(window.column_of(99.0), 9);

@@ -171,6 +171,9 @@ struct PredictRequest {
     // replay: a shared node's step, comm and wait from the time-shared step replayed
     // (replay_time_shared, session 39) with this scheduler slice, not from an overhead.
     double replay_slice_s = 1.5e-3;
+    // columns: each list or table rank's compute per interaction follows the memory order of
+    // its own columns (ColumnDisorder, session 56); none: every rank the whole run's profile.
+    std::string rank_disorder = "columns";
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);

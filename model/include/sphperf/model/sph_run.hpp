@@ -51,6 +51,9 @@ struct IntervalStats {
     double time_s = 0;
     std::vector<double> columns; // fluid particles per cell column at the interval's end
     std::vector<RankStats> ranks;
+    // Stored-list grids: interactions and descents per cell column, means per step over the
+    // interval, all ranks (empty: Cell+Sorted, or a report before session 56).
+    std::vector<double> column_interactions, column_descents;
 };
 
 struct RunConfig {

@@ -106,4 +106,39 @@ struct Disorder {
 // descents per interaction summed over ranks, at t = 0 taken equal to the first record.
 Disorder disorder_of(const std::vector<SphRun> &runs);
 
+// Where the memory order has decayed: per cell column, the interactions and descents of the
+// particles filed there, and how a rank's compute per interaction follows its descents per
+// interaction. The disorder sits where the water moves: at 0.13 s of a 4-rank dam break at
+// scale 1 (Cell+Table) the back rank read 0.21 descents per interaction and 20.7 ns of search
+// and id sort per interaction, the front rank 0.40 and 28.3 ns, and one profile for every rank
+// put the back rank, which sets the wall time, 6 % high (model/NOTES.md, session 55). The
+// columns follow the flow (Froude time); the cost line is fitted on the runs' busy
+// rank-intervals over the later half of their reach (earlier the collapse raises the cost
+// before the ids disorder), one level per run.
+struct ColumnDisorder {
+    std::string source;
+    double scale = 1, cell_size = 0, tank_length = 0;
+    std::vector<double> times_s;
+    std::vector<std::vector<double>> interactions, descents; // per column, at each time
+    // Compute seconds per interaction per step = intercept + slope x descents per interaction
+    // (at the speed gauge's reference speed where the runs carry it).
+    double intercept_s = 0, slope_s = 0, intercept_se_s = 0, slope_se_s = 0, r2 = 0;
+    std::size_t points = 0;
+
+    // Every slab's compute per interaction over the whole water's, the columns carried to the
+    // target (scale, cell size, tank length, columns) at its simulated time `target_time_s`:
+    // (a + b D_slab) / (a + b D_all). 1 for a slab without interactions. Throws UsageError
+    // naming the time needed when the record ends before it.
+    std::vector<double> rank_factors(double target_time_s, double target_scale, double target_cell,
+                                     double target_tank, int target_columns,
+                                     const std::vector<int> &cuts) const;
+    double end_time() const { return times_s.empty() ? 0 : times_s.back(); }
+    nlohmann::json to_json() const;
+    static ColumnDisorder from_json(const nlohmann::json &j, const std::string &where);
+};
+// From runs of one setup and grid with identical record times (rounds); nullopt when they carry
+// no per-column counts or too few points for the line. The runs' times as given (normalise
+// them to one speed first).
+std::optional<ColumnDisorder> column_disorder_of(const std::vector<SphRun> &runs);
+
 } // namespace sphperf::model

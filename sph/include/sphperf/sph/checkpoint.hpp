@@ -16,7 +16,7 @@
 
 namespace sphperf::sph {
 
-constexpr int checkpoint_schema = 2; // 2: report intervals carry overlap_s
+constexpr int checkpoint_schema = 3; // 2: intervals carry overlap_s; 3: column descents
 
 // What one rank saves after a step: all its particles (owned, then the transient ones of that
 // step, so a restart at the same rank count resumes from exactly this memory state), the

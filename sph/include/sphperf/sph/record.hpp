@@ -66,6 +66,9 @@ struct IntervalRecord {
     double time_s = 0;
     std::vector<double> columns; // fluid particles per global cell column
     std::vector<RankInterval> ranks;
+    // Stored-list grids: per global cell column, the owned particles' interactions and
+    // descents filed there (means per step, all ranks); empty for Cell+Sorted.
+    std::vector<double> column_interactions, column_descents;
 };
 
 struct PhysicsSeries {

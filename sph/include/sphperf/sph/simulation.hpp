@@ -33,6 +33,9 @@ public:
     Simulation(const Config &cfg, const Geometry &geo, Domain &dom)
         : cfg_(cfg), geo_(geo), phys_(cfg.physics), dom_(dom), window_(dom.window(geo.cell_rows)) {
         dom_.attach_timers(&step_timers_);
+        if constexpr (stored_lists)
+            for (auto *v : {&acc_column_interactions_, &acc_column_descents_})
+                v->assign(static_cast<std::size_t>(geo_.cell_columns), 0.0);
     }
     ~Simulation() { dom_.attach_timers(nullptr); }
     Simulation(const Simulation &) = delete;
@@ -76,6 +79,19 @@ private:
     void write_snapshot(std::int64_t step);
     // Particles of kind k (fluid or wall) per global cell column, summed on rank 0.
     std::vector<double> column_histogram(bool fluid) const;
+    static constexpr bool stored_lists = requires(typename Grid::Neighbours n) {
+        n.column_descents;
+    };
+    // Stored lists: the last search's interactions and descents onto the global columns.
+    void add_column_counts() {
+        if constexpr (stored_lists)
+            for (std::size_t c = 0; c < nb_.column_entries.size(); ++c) {
+                const auto g = static_cast<std::size_t>(
+                    std::clamp(nb_.column_begin + static_cast<int>(c), 0, geo_.cell_columns - 1));
+                acc_column_interactions_[g] += static_cast<double>(nb_.column_entries[c]);
+                acc_column_descents_[g] += static_cast<double>(nb_.column_descents[c]);
+            }
+    }
     std::size_t column_of(double x) const {
         return static_cast<std::size_t>(
             std::clamp(static_cast<int>(std::floor(x / geo_.cell_size)), 0, geo_.cell_columns - 1));
@@ -91,6 +107,8 @@ private:
     typename Grid::Neighbours nb_; // the grid's own neighbourhood type
     PhaseTimers step_timers_, total_timers_;
     RankInterval acc_;
+    // Stored-list grids: interactions and descents per global column over the interval.
+    std::vector<double> acc_column_interactions_, acc_column_descents_;
     SpeedGauge gauge_;
     std::size_t last_mirrors_ = 0, last_ghosts_ = 0, last_exported_ = 0, last_migrated_ = 0;
     std::int64_t first_mirror_id_ = 0;
@@ -471,13 +489,26 @@ template <CellGrid Grid> void Simulation<Grid>::close_interval(std::int64_t step
     const auto packed = out.pack();
     const auto all = dom_.gather(std::vector<double>(packed.begin(), packed.end()));
     std::vector<double> columns = column_histogram(true);
+    for (auto *v : {&acc_column_interactions_, &acc_column_descents_}) {
+        for (double &x : *v)
+            x /= n;
+        if (!v->empty())
+            dom_.sum_to_root(*v);
+    }
     if (dom_.rank() == 0) {
-        IntervalRecord rec{step, static_cast<double>(step) * cfg_.dt, std::move(columns), {}};
+        IntervalRecord rec{step,
+                           static_cast<double>(step) * cfg_.dt,
+                           std::move(columns),
+                           {},
+                           acc_column_interactions_,
+                           acc_column_descents_};
         for (std::size_t r = 0; r < static_cast<std::size_t>(dom_.ranks()); ++r)
             rec.ranks.push_back(RankInterval::unpack(&all[r * RankInterval::fields]));
         record_.intervals.push_back(std::move(rec));
     }
     acc_ = RankInterval{};
+    for (auto *v : {&acc_column_interactions_, &acc_column_descents_})
+        std::fill(v->begin(), v->end(), 0.0);
     check_conservation(step);
 }
 
@@ -673,6 +704,7 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         acc_.pairs += static_cast<double>(nb_.counts.pairs);
         acc_.interactions += static_cast<double>(nb_.counts.interactions);
         acc_.descents += static_cast<double>(nb_.counts.descents);
+        add_column_counts();
         interactions_total_ += static_cast<double>(nb_.counts.interactions);
         acc_.exported += static_cast<double>(last_exported_);
         acc_.migrated += static_cast<double>(last_migrated_);
