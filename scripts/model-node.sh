@@ -518,6 +518,10 @@ beside model_and_validate "$out/per-step-overhead" levelled-one-se froude relati
 # The replay at the 4 ms tick a parked rank sees (measured; the 1.5 ms slice was preferred to it).
 beside model_and_validate "$out/time-shared-replay-4ms" levelled-one-se froude relative replay \
     "--replay-slice-ms 4"
+# Every list or table rank at the whole run's memory order (sessions 1-55) instead of its own
+# columns' (session 56: the disorder sits where the water moves, model/NOTES.md).
+beside model_and_validate "$out/one-order-per-run" levelled-one-se froude relative replay \
+    "--rank-disorder none"
 beside model_and_validate "$out/no-profile" levelled-one-se none absolute
 beside model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute
 for pid in "${beside_pids[@]}"; do wait "$pid"; done # a failed comparison fails the job

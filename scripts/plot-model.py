@@ -631,6 +631,21 @@ def markdown(model, validation, args, out):
              "twin). Added after the session's main jobs put the scale-2 table dam breaks +11 and "
              "+19 % high and then the 2-rank one -10 to -12 %: **tuned**. Without them (sessions "
              "46-53's calibration) on the same runs: {o} (list-table-two-scales/validation.json)."),
+            (any("by_column" in g for g in (model.get("disorder") or {}).values()
+                 for g in g.values()),
+             "one-order-per-run",
+             "Each Cell+Table rank's compute per interaction from the memory order of its own "
+             "columns, since session 56 (sph records interactions and descents per column; "
+             "predict multiplies a rank's compute by (a + b D_rank) / (a + b D_all), the line "
+             "fitted on the long calibration dam breaks' later half): the disorder sits where "
+             "the water moves (at 0.13 s of a 4-rank dam break the back rank read 0.21 descents "
+             "per interaction, the front rank 0.40), and one profile for every rank had put the "
+             "back rank, which sets the wall time, 6 % high in session 55's quiet jobs. Cell+List's "
+             "descents do not follow its memory order and a still tank's barely move: their lines "
+             "are refused (model.json, by_column_unused). Built after seeing session 55's per-rank "
+             "validation errors: **tuned**. With every rank at the whole run's order (sessions "
+             "1-55, predict --rank-disorder none) on the same runs: {o} "
+             "(one-order-per-run/validation.json)."),
         ]
         for in_use, subdir, line in choices:
             o = untuned(subdir)

@@ -563,8 +563,12 @@ json disorder_by_setup(const std::vector<SphRun> &runs) {
         // Per column too (reports since session 56): predict gives each rank the memory order
         // of its own columns.
         if (const auto by_column = column_disorder_of(v)) {
-            d["by_column"] = by_column->to_json();
-            d["by_column"]["method"] =
+            const std::string why_not = by_column->unusable();
+            const char *key = why_not.empty() ? "by_column" : "by_column_unused";
+            d[key] = by_column->to_json();
+            if (!why_not.empty())
+                d[key]["unused_because"] = why_not;
+            d[key]["method"] =
                 "interactions and descents per cell column, mean of the runs, carried to the "
                 "target by Froude time; compute per interaction = intercept + slope x descents "
                 "per interaction, fitted (one level per run) on the rank-intervals holding at "

@@ -138,10 +138,14 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         }
         if (model.contains("disorder") && model.at("disorder").contains(setup) &&
             model.at("disorder").at(setup).contains(grid) &&
-            model.at("disorder").at(setup).at(grid).contains("by_column"))
+            model.at("disorder").at(setup).at(grid).contains("by_column")) {
             c.column_disorder =
                 ColumnDisorder::from_json(model.at("disorder").at(setup).at(grid).at("by_column"),
                                           "model disorder " + setup + "/" + grid + "/by_column");
+            if (const std::string why = c.column_disorder->unusable(); !why.empty())
+                throw UsageError("model disorder " + setup + "/" + grid + "/by_column: " + why +
+                                 " (calibrate keeps such a line under by_column_unused)");
+        }
         c.comm = CommModel::from_profile(model.at("machine"));
         c.exchange = ExchangeModel::from_profile(model.at("machine"));
         c.record_bytes = model.at("record_bytes").get<double>();

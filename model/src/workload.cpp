@@ -391,6 +391,15 @@ std::vector<double> ColumnDisorder::rank_factors(double target_time_s, double ta
     return out;
 }
 
+std::string ColumnDisorder::unusable() const {
+    if (!(intercept_s > 0))
+        return "the cost line's intercept " + num(intercept_s) + " s is not positive";
+    if (!(slope_s > 2 * slope_se_s))
+        return "the cost line's slope " + num(slope_s) + " s is not above two standard errors (" +
+               num(slope_se_s) + " s)";
+    return "";
+}
+
 nlohmann::json ColumnDisorder::to_json() const {
     return {{"source", source},
             {"scale", scale},

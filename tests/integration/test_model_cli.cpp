@@ -683,6 +683,87 @@ TEST(ModelCli, CostAwareCutsUseTheModelsWeights) {
 // Sendrecvs (east, west) of which one side leaves the node: 4 ms, 12 ms per step for 3
 // exchanges. On one node the same prediction costs far less, and a one-node run is never
 // matched to a two-node prediction.
+// Each list or table rank's compute follows the memory order of its own columns: a planted
+// per-column record (better ordered at the back of the water than at its front) and cost line
+// give the front rank the larger compute per interaction, the back one the smaller;
+// --rank-disorder none gives every rank the whole run's; an unusable line is refused.
+TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
+    const auto &f = fixture();
+    auto model = load(f.model);
+    const auto run1 = load(f.run1);
+    ASSERT_TRUE(model.contains(nlohmann::json::json_pointer("/disorder/dambreak/table")));
+    nlohmann::json times = nlohmann::json::array(), inter = nlohmann::json::array(),
+                   desc = nlohmann::json::array();
+    for (const auto &iv : run1["intervals"]) {
+        times.push_back(iv["time_s"]);
+        std::vector<double> i, d;
+        const auto &cols = iv["columns"];
+        for (std::size_t c = 0; c < cols.size(); ++c) {
+            i.push_back(40 * cols[c].get<double>());
+            d.push_back(i.back() * (0.05 + 0.02 * static_cast<double>(c)));
+        }
+        inter.push_back(i);
+        desc.push_back(d);
+    }
+    auto &entry = model["disorder"]["dambreak"]["table"];
+    entry["by_column"] = {{"source", "planted"},
+                          {"scale", run1["config"]["scale"]},
+                          {"cell_size", run1["config"]["cell_size"]},
+                          {"tank_length", run1["config"]["tank_length"]},
+                          {"times_s", times},
+                          {"column_interactions", inter},
+                          {"column_descents", desc},
+                          {"cost_per_interaction",
+                           {{"intercept_s", 30e-9},
+                            {"slope_s_per_descent_per_interaction", 50e-9},
+                            {"slope_se_s_per_descent_per_interaction", 5e-9}}}};
+    const auto planted = f.dir / "model_by_column.json";
+    std::ofstream(planted) << model.dump();
+    auto predict = [&](const fs::path &m, const std::string &extra, const std::string &name) {
+        const auto out = f.dir / ("pred_order_" + name + ".json");
+        return std::pair{run(bin("sphmodel") + " predict --model " + m.string() +
+                             " --setup dambreak --scale 0.5 --ranks 8 --steps 60 --interval 30" +
+                             extra + " --out " + out.string()),
+                         out};
+    };
+    // The interaction-weighted factors of the busy ranks at the last interval.
+    auto factors = [](const nlohmann::json &p) {
+        std::vector<double> out;
+        for (const auto &r : p["configurations"][0]["intervals"].back()["ranks"])
+            if (r["interactions"].get<double>() > 0)
+                out.push_back(r["memory_order_factor"].get<double>());
+        return out;
+    };
+    const auto [by_col, col_out] = predict(planted, "", "columns");
+    ASSERT_EQ(by_col.code, 0) << by_col.err;
+    const auto pc = load(col_out);
+    EXPECT_EQ(pc["model_source"]["rank_disorder"], "columns");
+    const auto fc = factors(pc);
+    ASSERT_GE(fc.size(), 2u) << "the water spans one slab";
+    EXPECT_LT(fc.front(), 1.0);
+    EXPECT_GT(fc.back(), 1.0);
+    EXPECT_LT(fc.front(), fc.back());
+    const auto [none, none_out] = predict(planted, " --rank-disorder none", "none");
+    ASSERT_EQ(none.code, 0) << none.err;
+    const auto pn = load(none_out);
+    EXPECT_EQ(pn["model_source"]["rank_disorder"], "none");
+    for (double x : factors(pn))
+        EXPECT_EQ(x, 1.0);
+    // The front rank computes longer with its own columns' order, the back one shorter.
+    const auto &rc = pc["configurations"][0]["per_rank"], &rn = pn["configurations"][0]["per_rank"];
+    EXPECT_LT(rc[0]["compute_s"].get<double>(), rn[0]["compute_s"].get<double>());
+    entry["by_column"]["cost_per_interaction"]["intercept_s"] = -1e-9;
+    const auto bad = f.dir / "model_by_column_bad.json";
+    std::ofstream(bad) << model.dump();
+    const auto [refused, refused_out] = predict(bad, "", "bad");
+    EXPECT_EQ(refused.code, 2);
+    EXPECT_NE(refused.err.find("intercept"), std::string::npos) << refused.err;
+    EXPECT_FALSE(fs::exists(refused_out));
+    const auto [wrong, wrong_out] = predict(planted, " --rank-disorder sometimes", "wrong");
+    EXPECT_EQ(wrong.code, 2);
+    EXPECT_NE(wrong.err.find("sometimes"), std::string::npos) << wrong.err;
+}
+
 TEST(ModelCli, RanksOverNodesPayTheInterNodeClass) {
     const auto &f = fixture();
     auto model = load(f.model);

@@ -454,6 +454,92 @@ TEST(Workload, DisorderFollowsSimulatedTimeAndAcousticTimeForAnotherSpacing) {
     }
 }
 
+TEST(Workload, ColumnDisorderRecoversTheCostLineAndGivesEachSlabItsColumns) {
+    // Two rounds (host levels 1 and 1.2) of a 2-rank run over 8 records, 4 columns of 1000
+    // interactions each; rank 0 holds columns 0-1, rank 1 columns 2-3. In the later half a
+    // rank's compute per interaction is planted as level x (a + b D); in the earlier half it is
+    // unrelated to D (the collapse), and the fit must leave it out.
+    constexpr double a = 30e-9, b = 50e-9;
+    auto descents = [](int k) {
+        return std::vector<double>{50.0 + 10 * k, 60.0 + 5 * k, 100.0 + 20 * k, 200.0 + 40 * k};
+    };
+    auto run = [&](double level) {
+        SphRun r;
+        r.path = "round" + std::to_string(level);
+        r.config.scale = 0.5;
+        r.config.cell_size = 0.04;
+        r.config.tank_length = 0.16;
+        for (int k = 1; k <= 8; ++k) {
+            IntervalStats iv;
+            iv.time_s = 0.01 * k;
+            iv.column_interactions = {1000, 1000, 1000, 1000};
+            iv.column_descents = descents(k);
+            for (int rank = 0; rank < 2; ++rank) {
+                RankStats rk;
+                rk.steps = 10;
+                rk.field_mean = 100;
+                rk.interactions = 2000;
+                rk.descents = iv.column_descents[2 * rank] + iv.column_descents[2 * rank + 1];
+                const double per = k >= 4 ? level * (a + b * rk.descents / rk.interactions)
+                                          : 3 * a * (k % 2 + 1); // no relation to D
+                rk.timers["comp_s"] = per * rk.steps * rk.interactions;
+                iv.ranks.push_back(rk);
+            }
+            r.intervals.push_back(iv);
+        }
+        return r;
+    };
+    const auto found = column_disorder_of({run(1.0), run(1.2)});
+    ASSERT_TRUE(found.has_value());
+    const ColumnDisorder d = ColumnDisorder::from_json(found->to_json(), "test");
+    // The levels are normalised to a mean of 1: the line at the mean level, 1.1.
+    EXPECT_NEAR(d.intercept_s, 1.1 * a, 1e-6 * a);
+    EXPECT_NEAR(d.slope_s, 1.1 * b, 1e-6 * b);
+    EXPECT_EQ(d.points, 20u); // 5 later records x 2 ranks x 2 rounds
+    auto expected = [&](int k, int begin, int end) {
+        const auto dc = descents(k);
+        const double all = std::accumulate(dc.begin(), dc.end(), 0.0) / 4000;
+        const double own =
+            std::accumulate(dc.begin() + begin, dc.begin() + end, 0.0) / (1000.0 * (end - begin));
+        return (a + b * own) / (a + b * all);
+    };
+    const std::vector<int> halves{0, 2, 4};
+    auto f = d.rank_factors(0.08, 0.5, 0.04, 0.16, 4, halves);
+    ASSERT_EQ(f.size(), 2u);
+    EXPECT_NEAR(f[0], expected(8, 0, 2), 1e-9);
+    EXPECT_NEAR(f[1], expected(8, 2, 4), 1e-9);
+    EXPECT_LT(f[0], 1.0); // the back of the water is the better ordered
+    EXPECT_GT(f[1], 1.0);
+    // Four slabs of one column each, and a slab without interactions keeps 1.
+    f = d.rank_factors(0.05, 0.5, 0.04, 0.16, 4, {0, 1, 2, 3, 4});
+    for (int c = 0; c < 4; ++c)
+        EXPECT_NEAR(f[static_cast<std::size_t>(c)], expected(5, c, c + 1), 1e-9) << c;
+    // Froude similarity: at scale 2 (16 columns) 0.16 s is the record at 0.08 s.
+    f = d.rank_factors(0.16, 2.0, 0.04, 0.64, 16, {0, 8, 16});
+    EXPECT_NEAR(f[0], expected(8, 0, 2), 1e-9);
+    EXPECT_NEAR(f[1], expected(8, 2, 4), 1e-9);
+    try {
+        (void)d.rank_factors(0.2, 0.5, 0.04, 0.16, 4, halves);
+        FAIL() << "no error past the record";
+    } catch (const UsageError &e) {
+        EXPECT_NE(std::string(e.what()).find("needs 0.2 s"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(d.unusable(), "");
+    ColumnDisorder flat = d; // Cell+List's descents, a still tank's: a line of noise
+    flat.intercept_s = -1e-9;
+    EXPECT_NE(flat.unusable().find("intercept"), std::string::npos);
+    flat = d;
+    flat.slope_se_s = 0.6 * d.slope_s;
+    EXPECT_NE(flat.unusable().find("two standard errors"), std::string::npos);
+    // Runs without per-column counts (Cell+Sorted, older reports) give none.
+    SphRun bare = run(1.0);
+    bare.intervals[3].column_interactions.clear();
+    EXPECT_FALSE(column_disorder_of({bare}).has_value());
+    nlohmann::json j = d.to_json();
+    j["column_descents"].erase(0);
+    EXPECT_THROW(ColumnDisorder::from_json(j, "test"), UsageError);
+}
+
 TEST(Workload, PairDensityIsRecordedPerIntervalAndReadAtTheSourceTime) {
     // Two ranks whose pairs per field particle differ; the trace keeps the sum over ranks.
     SphRun r;

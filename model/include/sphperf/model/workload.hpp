@@ -133,6 +133,11 @@ struct ColumnDisorder {
                                      double target_tank, int target_columns,
                                      const std::vector<int> &cuts) const;
     double end_time() const { return times_s.empty() ? 0 : times_s.back(); }
+    // Why the line cannot carry one rank's order to another, empty when it can: it needs a
+    // positive cost at no disorder and a slope above two standard errors. Cell+List's descents
+    // stay at 0.86 per interaction through a dam break (each cell's list is in reverse filing
+    // order, whatever the memory order), and a still tank's barely move: their lines are noise.
+    std::string unusable() const;
     nlohmann::json to_json() const;
     static ColumnDisorder from_json(const nlohmann::json &j, const std::string &where);
 };
