@@ -124,6 +124,21 @@ def scaling(predictions, validation, out):
     plt.close(fig)
 
 
+def rank_compute_ms(intervals, r, measured):
+    """Compute per step (ms) of rank r in each interval: a prediction's, or a report's timers
+    without comm, wait and output (the model's compute)."""
+    out, prev = [], 0
+    for iv in intervals:
+        rank = iv["ranks"][r]
+        if measured:
+            c = sum(v for k, v in rank["timers"].items() if k not in ("comm_s", "wait_s", "output_s"))
+            out.append(1e3 * c / max(rank["steps"], 1))
+        else:
+            out.append(1e3 * rank["compute_s"] / max(iv["step"] - prev, 1))
+            prev = iv["step"]
+    return out
+
+
 def workload(model, predictions, runs_dir, out):
     pred = next((p for p in predictions if p["request"]["setup"] == "dambreak"
                  and p["request"]["scale"] == 1 and p["request"]["grid"] == "table"
@@ -133,23 +148,47 @@ def workload(model, predictions, runs_dir, out):
     cfg = max(pred["configurations"], key=lambda c: c["ranks"])
     P = cfg["ranks"]
     run = os.path.join(runs_dir, f"val_dambreak_s1_table_r{P}.json")
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    m = load(run) if os.path.exists(run) else None
+    # The same prediction with every rank at the whole run's memory order (session 56's
+    # comparison), where the job made it.
+    flat_path = os.path.join(os.path.dirname(out), "one-order-per-run", "prediction_dambreak_s1_table.json")
+    flat = None
+    if os.path.exists(flat_path):
+        flat = next((c for c in load(flat_path)["configurations"] if c["ranks"] == P
+                     and c.get("decomposition", "equal") == "equal"), None)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
+    t = [iv["time_s"] for iv in cfg["intervals"]]
     for r in range(P):
-        t = [iv["time_s"] for iv in cfg["intervals"]]
-        f = [iv["ranks"][r]["field"] for iv in cfg["intervals"]]
-        line, = ax.plot(t, f, "-", label=f"rank {r} predicted")
-        if os.path.exists(run):
-            m = load(run)
-            ax.plot([iv["time_s"] for iv in m["intervals"]],
-                    [iv["ranks"][r]["field_mean"] for iv in m["intervals"]], "o", ms=3,
-                    color=line.get_color(), label=f"rank {r} measured")
-    ax.set_xlabel("simulated time (s)")
-    ax.set_ylabel("field particles owned")
+        line, = axes[0].plot(t, [iv["ranks"][r]["field"] for iv in cfg["intervals"]], "-",
+                             label=f"rank {r} predicted")
+        c = line.get_color()
+        busy = any(iv["ranks"][r]["interactions"] > 0 for iv in cfg["intervals"])
+        if busy:
+            axes[1].plot(t, rank_compute_ms(cfg["intervals"], r, False), "-", color=c,
+                         label=f"rank {r} predicted, its columns' memory order")
+            if flat is not None:
+                axes[1].plot(t, rank_compute_ms(flat["intervals"], r, False), ":", color=c,
+                             label=f"rank {r} predicted, the whole run's order")
+        if m is not None:
+            mt = [iv["time_s"] for iv in m["intervals"]]
+            axes[0].plot(mt, [iv["ranks"][r]["field_mean"] for iv in m["intervals"]], "o", ms=3,
+                         color=c, label=f"rank {r} measured")
+            if busy:
+                axes[1].plot(mt, rank_compute_ms(m["intervals"], r, True), "o", ms=3, color=c,
+                             label=f"rank {r} measured")
+    for ax in axes:
+        ax.set_xlabel("simulated time (s)")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("field particles owned")
+    axes[1].set_ylabel("compute per step (ms)")
     trace = model.get("traces", {}).get("dambreak", {})
     source = f"a scale-{trace['scale']:g} trace" if "scale" in trace else "the calibration's trace"
-    ax.set_title(f"Workload per rank, dam break scale 1, {P} ranks (thesis Fig. 4.3)\n"
-                 f"predicted from {source} by Froude similarity")
-    ax.legend(fontsize=7, ncol=2)
+    axes[0].set_title(f"Workload per rank, dam break scale 1, {P} ranks (thesis Fig. 4.3)\n"
+                      f"predicted from {source} by Froude similarity", fontsize=10)
+    axes[1].set_title("Compute per rank, the same run: each rank at its own columns'\n"
+                      "memory order (model/README.md) against the whole run's", fontsize=10)
+    axes[0].legend(fontsize=7, ncol=2)
+    axes[1].legend(fontsize=6, ncol=1)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)
@@ -631,8 +670,8 @@ def markdown(model, validation, args, out):
              "twin). Added after the session's main jobs put the scale-2 table dam breaks +11 and "
              "+19 % high and then the 2-rank one -10 to -12 %: **tuned**. Without them (sessions "
              "46-53's calibration) on the same runs: {o} (list-table-two-scales/validation.json)."),
-            (any("by_column" in g for g in (model.get("disorder") or {}).values()
-                 for g in g.values()),
+            (any("by_column" in grid for setup in (model.get("disorder") or {}).values()
+                 for grid in setup.values()),
              "one-order-per-run",
              "Each Cell+Table rank's compute per interaction from the memory order of its own "
              "columns, since session 56 (sph records interactions and descents per column; "
