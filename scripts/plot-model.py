@@ -792,6 +792,22 @@ def markdown(model, validation, args, out):
                      f"{100 * s['peak_rss_abs_error']['max']:.1f} %; the thesis' Eqs. 4.4/4.5 bound is "
                      f"{m.get('thesis_bound_max_rank', 0) / max(m.get('measured_max_rank', 1), 1):.1f}x the "
                      f"measured peak in the first configuration.")
+    within, shared = s.get("compute_per_busy_rank_abs_error"), s.get("compute_per_busy_rank_abs_error_time_shared")
+    if within or shared:
+        parts = [f"{where}: median {100 * x['median']:.1f} %, max {100 * x['max']:.1f} % over {x['count']} ranks"
+                 for where, x in (("within the cores", within), ("time-shared", shared)) if x]
+        text = ("Compute of each busy rank (a tenth or more of its run's) of the multi-rank runs, |error| "
+                "(how the model shares the work and its cost between the ranks, which the sum hides; a "
+                "time-shared rank's timers also hold the time its core ran another rank): "
+                + "; ".join(parts))
+        flat = os.path.join(args.dir, "one-order-per-run", "validation.json")
+        if os.path.exists(flat):
+            fs = load(flat)["summary"]
+            fw, fsh = fs.get("compute_per_busy_rank_abs_error"), fs.get("compute_per_busy_rank_abs_error_time_shared")
+            fparts = [f"{100 * x['median']:.1f} / {100 * x['max']:.1f} %" for x in (fw, fsh) if x]
+            text += (". With every rank at the whole run's memory order (one-order-per-run/): "
+                     + " and ".join(fparts))
+        lines.append(text + ".")
     lines.append("")
     lines.append(f"Roofline: {model['roofline']['verdict']}.")
     with open(out, "w") as f:

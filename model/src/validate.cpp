@@ -139,6 +139,11 @@ json validate(const json &header, const std::vector<json> &predictions,
     std::vector<double> corrected_errors, speed_factors;
     std::vector<double> wall_errors, inline_comm_errors, hockney_comm_errors, model_comm_errors,
         memory_errors;
+    // Each busy rank's compute (a tenth or more of its configuration's): how the model shares
+    // the work and its cost between the ranks, validated apart from their sum.
+    // Within the cores, and time-shared apart (a shared rank's timers also hold the time its
+    // core ran another rank).
+    std::vector<double> rank_compute_errors, rank_compute_errors_shared;
     // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
     std::vector<double> own_kind_errors;
     // The inline errors by the exchange benchmark alone (the inline prediction above the cores
@@ -366,6 +371,31 @@ json validate(const json &header, const std::vector<json> &predictions,
                 {"thesis_bound_max_rank", pm.at("thesis_bound_bytes_max_rank")}};
             memory_errors.push_back(std::abs(rel(predicted_rss, measured_rss)));
         }
+        // Compute per rank: the work's share and its cost per rank (the memory order of the
+        // rank's own columns, session 56), which the sum over ranks hides.
+        const json &pr = p->at("per_rank");
+        if (pr.size() == static_cast<std::size_t>(P) &&
+            std::all_of(pr.begin(), pr.end(),
+                        [](const json &r) { return r.contains("compute_s"); })) {
+            std::vector<double> per(static_cast<std::size_t>(P), 0.0);
+            for (const auto &iv : m.intervals)
+                for (std::size_t r = 0; r < iv.ranks.size() && r < per.size(); ++r)
+                    per[r] += iv.ranks[r].compute_s();
+            json ranks = json::array();
+            for (std::size_t r = 0; r < per.size(); ++r) {
+                const double predicted = pr[r].at("compute_s").get<double>();
+                const bool busy = per[r] >= 0.1 * compute && per[r] > 0;
+                ranks.push_back({{"measured_s", per[r]},
+                                 {"predicted_s", predicted},
+                                 {"error", per[r] > 0 ? json(rel(predicted, per[r])) : json()},
+                                 {"busy", busy}});
+                if (busy && P > 1)
+                    (p->at("oversubscribed").get<bool>() ? rank_compute_errors_shared
+                                                         : rank_compute_errors)
+                        .push_back(std::abs(rel(predicted, per[r])));
+            }
+            row["phases"]["compute"]["per_rank"] = ranks;
+        }
         rows.push_back(row);
     }
     auto summary = [](std::vector<double> v) -> json {
@@ -390,6 +420,8 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"inline_hockney_comm_abs_error_per_interval", summary(hockney_comm_errors)},
         {"model_comm_abs_error_per_interval", summary(model_comm_errors)},
         {"peak_rss_abs_error", summary(memory_errors)},
+        {"compute_per_busy_rank_abs_error", summary(rank_compute_errors)},
+        {"compute_per_busy_rank_abs_error_time_shared", summary(rank_compute_errors_shared)},
         {"wall_abs_error_speed_corrected", summary(corrected_errors)},
         {"speed_factor",
          speed_factors.empty()
@@ -621,6 +653,15 @@ std::string validation_table(const json &v) {
         s += fmt("  peak RSS of the largest rank, |error|: median %.1f%%, max %.1f%%\n",
                  100 * d(sm.at("peak_rss_abs_error").at("median")),
                  100 * d(sm.at("peak_rss_abs_error").at("max")));
+    for (const auto &[key, where] :
+         {std::pair{"compute_per_busy_rank_abs_error", "within the cores"},
+          std::pair{"compute_per_busy_rank_abs_error_time_shared", "time-shared"}})
+        if (sm.contains(key) && !sm.at(key).is_null())
+            s +=
+                fmt("  compute per busy rank (a tenth or more of its run's) of the multi-rank runs "
+                    "%s, |error|: median %.1f%%, max %.1f%% over %d ranks\n",
+                    where, 100 * d(sm.at(key).at("median")), 100 * d(sm.at(key).at("max")),
+                    sm.at(key).at("count").get<int>());
     for (const auto &u : v.at("unmatched_runs"))
         s += "  not in any prediction: " + u.get<std::string>() + "\n";
     return s;

@@ -1044,6 +1044,43 @@ TEST(Validate, FlagsAPlantedTwentyPercentError) {
     EXPECT_EQ(v["unmatched_runs"].size(), 1u);
 }
 
+// Each busy rank's compute apart from their sum (session 56): ranks predicted +10 % and -20 %
+// sum to -0.7 %, which the configuration's compute error alone would call right. A rank with
+// under a tenth of the compute is listed, not summarised; time-shared runs are summarised apart.
+TEST(Validate, ReportsEachBusyRanksComputeApart) {
+    auto m = measured_run(1.0);
+    m.config.ranks = 3;
+    RankStats back = m.intervals[0].ranks[0], front = back, dry = back;
+    back.timers = {{"comp_s", 1.0}, {"comm_s", 0}, {"wait_s", 0}};
+    front.timers = {{"comp_s", 0.5}, {"comm_s", 0}, {"wait_s", 0}};
+    dry.timers = {{"comp_s", 0.01}, {"comm_s", 0}, {"wait_s", 0}};
+    m.intervals[0].ranks = {back, front, dry};
+    m.placement_pus = {0, 1, 0};
+    auto p = prediction(1.0);
+    auto &c = p["configurations"][0];
+    c["ranks"] = 3;
+    const nlohmann::json one = c["per_rank"][0];
+    c["per_rank"] = {one, one, one};
+    for (auto [r, s] : {std::pair{0, 1.1}, {1, 0.4}, {2, 0.05}})
+        c["per_rank"][r]["compute_s"] = s;
+    bool exceeded = false;
+    auto v = validate({}, {p}, {m}, {}, exceeded);
+    ASSERT_EQ(v["configurations"].size(), 1u);
+    const auto &ranks = v["configurations"][0]["phases"]["compute"]["per_rank"];
+    ASSERT_EQ(ranks.size(), 3u);
+    EXPECT_NEAR(ranks[0]["error"].get<double>(), 0.1, 1e-12);
+    EXPECT_NEAR(ranks[1]["error"].get<double>(), -0.2, 1e-12);
+    EXPECT_FALSE(ranks[2]["busy"].get<bool>());
+    const auto &sm = v["summary"]["compute_per_busy_rank_abs_error"];
+    EXPECT_EQ(sm["count"], 2);
+    EXPECT_NEAR(sm["max"].get<double>(), 0.2, 1e-12);
+    EXPECT_TRUE(v["summary"]["compute_per_busy_rank_abs_error_time_shared"].is_null());
+    c["oversubscribed"] = true;
+    v = validate({}, {p}, {m}, {}, exceeded);
+    EXPECT_TRUE(v["summary"]["compute_per_busy_rank_abs_error"].is_null());
+    EXPECT_EQ(v["summary"]["compute_per_busy_rank_abs_error_time_shared"]["count"], 2);
+}
+
 // The speed gauge (session 50): a run measured on a host 1.3 times slower, its gauge 1.3 times
 // slower too, is predicted 20 % high at the reference speed and 1.2 x 1.3 - 1 = +56 % high at its
 // own speed. The band stays the prediction's; a run without gauge samples, or a prediction
