@@ -47,14 +47,11 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
     // Pass 2, the price of sums in id order: each list sorted by id ((id, index) side by side,
     // so the sort compares contiguous keys), and the pairs counted.
     std::uint64_t pairs = 0, descents = 0;
-    const auto cols = static_cast<std::size_t>(w.cols());
-    nl.column_blocks.resize(static_cast<std::size_t>(threads));
+    nl.descents_of.resize(owned);
 #pragma omp parallel num_threads(threads) reduction(+ : pairs, descents)
     {
         const int t = omp_get_thread_num();
         auto &mine = parts[static_cast<std::size_t>(t)];
-        auto &by_column = nl.column_blocks[static_cast<std::size_t>(t)];
-        by_column.assign(2 * cols, 0);
         thread_local std::vector<std::pair<std::int64_t, std::uint32_t>> local;
         std::size_t at = 0;
         for (std::size_t i = block(t); i < block(t + 1); ++i) {
@@ -62,13 +59,11 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
             local.clear();
             for (std::size_t k = at; k < at + n; ++k)
                 local.emplace_back(p.id[mine[k]], mine[k]);
-            std::uint64_t down = 0;
+            std::uint32_t down = 0;
             for (std::size_t k = 1; k < n; ++k)
                 down += local[k].first < local[k - 1].first ? 1 : 0;
             descents += down;
-            const auto col = static_cast<std::size_t>(w.column_of(p.x[i]) - w.col_begin);
-            by_column[col] += n;
-            by_column[cols + col] += down;
+            nl.descents_of[i] = down;
             std::sort(local.begin(), local.end());
             const std::int64_t id_i = p.id[i];
             for (std::size_t k = 0; k < n; ++k) {
@@ -81,14 +76,6 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
         }
     }
     const double sort_s = wall_seconds() - sort_start;
-    nl.column_begin = w.col_begin;
-    nl.column_entries.assign(cols, 0);
-    nl.column_descents.assign(cols, 0);
-    for (const auto &by_column : nl.column_blocks)
-        for (std::size_t c = 0; c < cols; ++c) {
-            nl.column_entries[c] += by_column[c];
-            nl.column_descents[c] += by_column[cols + c];
-        }
     for (std::size_t i = 0; i < owned; ++i)
         nl.offsets[i + 1] += nl.offsets[i];
     nl.index.clear();

@@ -24,15 +24,14 @@ struct NeighbourList {
     // Search scratch kept across steps (one block per thread): no allocation or page fault in
     // the search once the lists have reached their size.
     std::vector<std::vector<std::uint32_t>> blocks;
-    // Stored lists: per cell column of the search window (the first is column_begin), the list
-    // entries and descents of the owned particles filed there. The disorder sits where the
-    // water moves, so the model gives each rank the memory order of its own columns.
-    int column_begin = 0;
-    std::vector<std::uint64_t> column_entries, column_descents;
-    std::vector<std::vector<std::uint64_t>> column_blocks; // per thread: entries, then descents
+    // Stored lists: each owned particle's descents, neighbours found right after one of larger
+    // id (before the id sort). The disorder sits where the water moves, so the report adds
+    // them up per cell column and the model gives each rank its own columns' memory order.
+    std::vector<std::uint32_t> descents_of;
 
     std::size_t particles() const { return offsets.empty() ? 0 : offsets.size() - 1; }
     std::size_t interactions() const { return index.size(); }
+    std::size_t interactions_of(std::size_t i) const { return offsets[i + 1] - offsets[i]; }
 
     template <class F> void for_each_neighbour(std::size_t i, F &&f) const {
         for (std::uint32_t e = offsets[i]; e < offsets[i + 1]; ++e)

@@ -79,18 +79,18 @@ private:
     void write_snapshot(std::int64_t step);
     // Particles of kind k (fluid or wall) per global cell column, summed on rank 0.
     std::vector<double> column_histogram(bool fluid) const;
-    static constexpr bool stored_lists = requires(typename Grid::Neighbours n) {
-        n.column_descents;
-    };
-    // Stored lists: the last search's interactions and descents onto the global columns.
+    static constexpr bool stored_lists = requires(typename Grid::Neighbours n) { n.descents_of; };
+    // Stored lists: the last search's interactions and descents of every owned particle onto
+    // its global column (the histogram's rule). Timed as output: it is the report's work.
     void add_column_counts() {
-        if constexpr (stored_lists)
-            for (std::size_t c = 0; c < nb_.column_entries.size(); ++c) {
-                const auto g = static_cast<std::size_t>(
-                    std::clamp(nb_.column_begin + static_cast<int>(c), 0, geo_.cell_columns - 1));
-                acc_column_interactions_[g] += static_cast<double>(nb_.column_entries[c]);
-                acc_column_descents_[g] += static_cast<double>(nb_.column_descents[c]);
+        if constexpr (stored_lists) {
+            ScopedPhase t(step_timers_, Phase::output);
+            for (std::size_t i = 0; i < std::min(nb_.particles(), p_.owned()); ++i) {
+                const std::size_t c = column_of(p_.x[i]);
+                acc_column_interactions_[c] += static_cast<double>(nb_.interactions_of(i));
+                acc_column_descents_[c] += static_cast<double>(nb_.descents_of[i]);
             }
+        }
     }
     std::size_t column_of(double x) const {
         return static_cast<std::size_t>(
