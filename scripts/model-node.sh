@@ -96,21 +96,9 @@ fresh_exchange() {
     fresh_s=$((fresh_s + SECONDS - t0))
 }
 
-# Validation steps per setup and scale, and calibration reach. A calibration run at scale s must
-# cover the validation's flow in Froude time (t_cal >= t_val sqrt(s / scale)); c_steps at half
-# scale, c5_steps at 0.5 (the list and table dam breaks: 0.15 s x sqrt(0.5) = 0.106 s, 1100
-# steps with a margin), c35_steps at 0.35 (the 2-thread dam break: 0.089 s, 920 steps). The
-# model in use needs no more (its cost over time is the Froude-time profile). The models
-# reported beside it for comparison may select the memory-order term, which needs the
-# validation's simulated time (model/NOTES.md "Memory order"); a prediction they cannot make
-# from these runs is listed as such.
-if [ "$quick" -eq 1 ]; then
-    v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c5_steps=130 c35_steps=130 c7_steps=60
-    c25_steps=60 cs_steps=40 interval=20 c_interval=10
-else
-    v_steps=1500 v2_steps=500 vs_steps=300 c_steps=1500 c5_steps=1100 c35_steps=920 c7_steps=300
-    c25_steps=300 cs_steps=300 interval=100 c_interval=20
-fi
+# The validation set's lengths and model_and_validate (scripts/model-set.sh, which
+# scripts/replay-job.sh shares).
+source "$root/scripts/model-set.sh"
 # The validation runs under 3 s (the sorted still tanks and the 2-thread dam break) run 3 times
 # and the median run is validated: a slow spell of this VM (10-35 % over minutes) covers a whole
 # short run (session 34: the 2-rank still tank took 1.41 s, its --overlap twin 1.26 s, predicted
@@ -375,69 +363,8 @@ stage "short validation runs, pass $short_repeats of $short_repeats"
 short_pass "$short_repeats"
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
-# model_and_validate DIR RULE PROFILE [WEIGHTS [SHARING]]: calibrate with the compute-cost term
-# rule RULE, the time profile PROFILE and the fit weights WEIGHTS (relative unless given),
-# predict with the time-sharing form SHARING (replay unless given), validate; with the
-# reports listed in the arrays cal_reports and val_reports.
-# The model's calibration runs: every round's (rounds a and b, and Cell+Sorted's c).
-model_runs() {
-    ls "$runs"/cal_*.json
-}
 mapfile -t cal_reports < <(model_runs)
 val_reports=("$runs"/val_*.json)
-model_and_validate() {
-    local dir=$1 rule=$2 profile=$3 weights=${4:-relative} sharing=${5:-replay}
-    local predict_extra=() cal_extra=()
-    [ -n "${6:-}" ] && read -r -a predict_extra <<<"$6"
-    # CAL_EXTRA: more calibrate options (a comparison model's).
-    [ -n "${CAL_EXTRA:-}" ] && read -r -a cal_extra <<<"$CAL_EXTRA"
-    mkdir -p "$dir"
-    rm -f "$dir/refused.txt"
-    stage "calibration ($rule, time profile $profile)"
-    "$build/bin/sphmodel" calibrate --machine "$machine" --runs "${cal_reports[@]}" \
-        --term-selection "$rule" --time-profile "$profile" --fit-weights "$weights" \
-        "${cal_extra[@]}" --out "$dir/model.json"
-
-    stage "predictions ($rule)"
-    predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
-        local name=$1 threads=1
-        shift
-        if [ "${1:-}" = "--threads" ]; then threads=$2; shift 2; fi
-        # The model in use must predict everything; a comparison model may refuse a
-        # configuration its calibration cannot reach (exit 2, its one line kept).
-        "$build/bin/sphmodel" predict --model "$dir/model.json" --threads "$threads" \
-            --interval "$interval" --time-sharing-overhead "$sharing" "${predict_extra[@]}" \
-            --out "$dir/prediction_$name.json" "$@" 2>"$dir/$name.err" || {
-            local rc=$?
-            if [ "$dir" = "$out" ] || [ "$rc" -ne 2 ]; then
-                cat "$dir/$name.err" >&2
-                return 1
-            fi
-            echo "  $dir: cannot predict $name: $(cat "$dir/$name.err")" | tee -a "$dir/refused.txt"
-        }
-        [ -s "$dir/$name.err" ] && cat "$dir/$name.err" >&2
-        rm -f "$dir/$name.err"
-    }
-    predict dambreak_s1_table --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 --steps "$v_steps"
-    predict dambreak_s1_table_balanced --setup dambreak --grid table --scale 1 --ranks 2,4 \
-        --steps "$v_steps" --decomposition balanced
-    predict dambreak_s1_list --setup dambreak --grid list --scale 1 --ranks 1,2,3 --steps "$v_steps"
-    predict dambreak_s2_table --setup dambreak --grid table --scale 2 --ranks 2,4 --steps "$v2_steps"
-    predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps "$vs_steps"
-    predict still_s1_list --setup still --grid list --scale 1 --ranks 2 --steps "$vs_steps"
-    predict dambreak_s1_sorted --setup dambreak --grid sorted --scale 1 --ranks 2 --steps "$v_steps"
-    predict still_s1_sorted --setup still --grid sorted --scale 1 --ranks 2,3 --steps "$vs_steps"
-    predict dambreak_s1_sorted_overlap --setup dambreak --grid sorted --overlap --scale 1 --ranks 2 \
-        --steps "$v_steps"
-    predict still_s1_sorted_overlap --setup still --grid sorted --overlap --scale 1 --ranks 2 \
-        --steps "$vs_steps"
-    predict dambreak_s1_sorted_t2 --threads 2 --setup dambreak --grid sorted --scale 1 --ranks 1 \
-        --steps "$v_steps"
-
-    stage "validation ($rule)"
-    "$build/bin/sphmodel" validate --prediction "$dir"/prediction_*.json \
-        --measured "${val_reports[@]}" --out "$dir/validation.json"
-}
 # The term rule in use was chosen (session 13) after comparing rules on three main jobs' runs,
 # and the Froude-time profile (session 16) after seeing the scale-1 dam-break errors: both are
 # tuned, and so is its robust quadratic (session 42, after seeing the scale-2 dam breaks'

@@ -1466,3 +1466,61 @@ TEST(ModelCli, ScaleSweepReadsTheMemoryOrdersRiseAtEqualFroudeTime) {
                        {"--froude-time -0.1", "expected a time above 0 s"}});
     fs::remove_all(dir);
 }
+
+// scripts/replay-job.sh on the stored main job's runs: --include keeps exactly the calibration
+// reports it names (round a's), the cost it prints is their run time over the validation runs',
+// and every validation run is predicted; bad input exits 2 with one line and writes nothing.
+TEST(ModelCli, ReplayJobCalibratesOnTheRunsItKeeps) {
+    const fs::path dir = scratch("replay_job");
+    const fs::path runs = reference_vm + "runs";
+    const std::string script =
+        "SPHPERF_BUILD_DIR=" + fs::path(SPHPERF_BIN_DIR).parent_path().string() + " bash " +
+        std::string(SPHPERF_SCRIPTS_DIR) + "/replay-job.sh --runs " + runs.string() +
+        " --machine " + reference_vm + "machine.json";
+    std::vector<fs::path> round_a, validation;
+    for (const auto &e : fs::directory_iterator(runs)) {
+        const std::string name = e.path().filename().string();
+        if (name.rfind("cal_", 0) == 0 && name.size() > 7 &&
+            name.compare(name.size() - 7, 7, "_a.json") == 0)
+            round_a.push_back(e.path());
+        if (name.rfind("val_", 0) == 0)
+            validation.push_back(e.path());
+    }
+    ASSERT_GE(round_a.size(), 10u);
+    ASSERT_GE(validation.size(), 10u);
+    const fs::path out = dir / "round_a";
+    const sphperf::testing::Run r = run(script + " --include '_a\\.json$' --out " + out.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto model = load(out / "model.json");
+    std::set<std::string> used, expected;
+    for (const auto &c : model["calibration_runs"])
+        used.insert(fs::path(c["path"].get<std::string>()).filename().string());
+    for (const auto &p : round_a)
+        expected.insert(p.filename().string());
+    EXPECT_EQ(used, expected);
+    auto wall_sum = [](const std::vector<fs::path> &reports) {
+        double s = 0;
+        for (const auto &p : reports)
+            s += load(p)["wall_s"].get<double>();
+        return s;
+    };
+    std::ostringstream cost;
+    cost.setf(std::ios::fixed);
+    cost.precision(1);
+    cost << "calibration: " << round_a.size() << " runs, " << wall_sum(round_a)
+         << " s of run time, " << 100 * wall_sum(round_a) / wall_sum(validation) << " % of";
+    EXPECT_NE(r.out.find(cost.str()), std::string::npos) << cost.str() << "\n" << r.out;
+    EXPECT_EQ(load(out / "validation.json")["configurations"].size(), validation.size());
+
+    const fs::path bad = dir / "bad";
+    for (const auto &[args, expect] : std::vector<std::pair<std::string, std::string>>{
+             {"--include '('", "not an extended regular expression"},
+             {"--include no_such_run", "no calibration report"},
+             {"--bogus", "unknown argument '--bogus'"}}) {
+        const sphperf::testing::Run b = run(script + " " + args + " --out " + bad.string());
+        EXPECT_EQ(b.code, 2) << args << b.err;
+        EXPECT_EQ(b.err_lines(), 1) << b.err;
+        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
+        EXPECT_FALSE(fs::exists(bad));
+    }
+}

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# A main job's measured runs calibrated again, with some calibration runs left out: what a
+# cheaper calibration would have predicted for the same validation runs, and what it costs.
+#   scripts/replay-job.sh (--runs DIR --machine MACHINE.json | --commit REV [--host H])
+#       --out DIR [--exclude REGEX] [--include REGEX] [--quick]
+# --runs: a job's runs (DIR/cal_*.json and DIR/val_*.json, as scripts/model-node.sh writes
+# them); --commit: the job stored in results/reference/H/ (default vm) at git revision REV.
+# --exclude / --include: extended regular expressions on the calibration reports' paths (the
+# model's calibration runs are cal_*.json; round a's end in _a.json, b's in _b.json, Cell+Sorted's
+# round c in _c.json). --quick: the runs are a --quick job's (its validation lengths).
+# Writes DIR/{model,prediction_*,validation}.json (sphmodel's), prints validate's table and the
+# calibration's cost: the run time of the calibration runs kept over that of the validation runs
+# (the reports' wall_s, without the launcher's start-up). Nothing is timed: runs beside anything.
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build="${SPHPERF_BUILD_DIR:-$root/build}"
+stage() { echo "== $*"; }
+usage() { sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+die() { echo "replay-job.sh: $*" >&2; exit 2; }
+runs="" machine="" commit="" host=vm out="" exclude="" include="" quick=0
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --runs | --machine | --commit | --host | --out | --exclude | --include)
+            [ $# -ge 2 ] || die "$1 needs a value (see --help)"
+            v=$2
+            case "$1" in
+                --runs) runs=$v ;; --machine) machine=$v ;; --commit) commit=$v ;;
+                --host) host=$v ;; --out) out=$v ;; --exclude) exclude=$v ;; --include) include=$v ;;
+            esac
+            shift 2 ;;
+        --quick) quick=1; shift ;;
+        -h | --help) usage 0 ;;
+        *) die "unknown argument '$1' (see --help)" ;;
+    esac
+done
+[ -n "$out" ] || die "--out DIR is required"
+if [ -n "$commit" ]; then
+    [ -z "$runs" ] && [ -z "$machine" ] || die "--commit replaces --runs and --machine"
+    git -C "$root" rev-parse --verify --quiet "$commit^{commit}" >/dev/null ||
+        die "--commit '$commit': not a revision of $root"
+    job="$out/job"
+    rm -rf "$job"
+    mkdir -p "$job"
+    git -C "$root" archive "$commit" "results/reference/$host/runs" \
+        "results/reference/$host/machine.json" 2>/dev/null |
+        tar -x -C "$job" --strip-components=3 ||
+        die "--commit '$commit': no results/reference/$host/{runs,machine.json} there"
+    runs="$job/runs" machine="$job/machine.json"
+fi
+[ -n "$runs" ] && [ -n "$machine" ] || die "give --runs DIR and --machine FILE, or --commit REV"
+[ -f "$machine" ] || die "--machine '$machine': no such file"
+for re in "$exclude" "$include"; do
+    [ -n "$re" ] || continue
+    rc=0
+    grep -E -q -- "$re" <<<"" 2>/dev/null || rc=$?
+    [ "$rc" -le 1 ] || die "'$re': not an extended regular expression"
+done
+source "$root/scripts/model-set.sh"
+shopt -s nullglob
+mapfile -t cal_reports < <(model_runs 2>/dev/null |
+    { [ -n "$include" ] && grep -E -- "$include" || cat; } |
+    { [ -n "$exclude" ] && grep -v -E -- "$exclude" || cat; })
+val_reports=("$runs"/val_*.json)
+[ "${#val_reports[@]}" -gt 0 ] || die "--runs '$runs': no validation reports (val_*.json)"
+[ "${#cal_reports[@]}" -gt 0 ] || die "no calibration report (cal_*.json in '$runs') is left" \
+    "after --include '$include' and --exclude '$exclude'"
+model_and_validate "$out" levelled-one-se froude
+/usr/bin/python3 - "$out/validation.json" "${#cal_reports[@]}" "${cal_reports[@]}" \
+    -- "${val_reports[@]}" <<'PY'
+import json, sys
+args = sys.argv[3:]
+sep = args.index("--")
+wall = lambda p: json.load(open(p))["wall_s"]
+cal, val = sum(map(wall, args[:sep])), sum(map(wall, args[sep + 1:]))
+s = json.load(open(sys.argv[1]))["summary"]["wall_abs_error"]
+print(f"calibration: {sys.argv[2]} runs, {cal:.1f} s of run time, {100 * cal / val:.1f} % of the "
+      f"validation runs' {val:.1f} s; wall |error| median {100 * s['median']:.1f} %, "
+      f"max {100 * s['max']:.1f} %")
+PY
