@@ -679,12 +679,16 @@ def markdown(model, validation, args, out):
              "fitted on the long calibration dam breaks' later half): the disorder sits where "
              "the water moves (at 0.13 s of a 4-rank dam break the back rank read 0.21 descents "
              "per interaction, the front rank 0.40), and one profile for every rank had put the "
-             "back rank, which sets the wall time, 6 % high in session 55's quiet jobs. Cell+List's "
-             "descents do not follow its memory order and a still tank's barely move: their lines "
-             "are refused (model.json, by_column_unused). Built after seeing session 55's per-rank "
-             "validation errors: **tuned**. With every rank at the whole run's order (sessions "
-             "1-55, predict --rank-disorder none) on the same runs: {o} "
-             "(one-order-per-run/validation.json)."),
+             "back rank, which sets the wall time, 6 % high in session 55's quiet jobs. Each "
+             "Cell+List rank's too since session 57, read off Cell+Table's descents in the same "
+             "columns at the same times (Cell+List's own stay at 0.86 per interaction whatever "
+             "its memory order; its particles move and migrate as Cell+Table's do, and its cost "
+             "per interaction follows Cell+Table's descents with R^2 0.92-0.96). A still tank's "
+             "order barely moves: its lines are refused (model.json, by_column_unused). Built "
+             "after seeing session 55's per-rank validation errors (Cell+List's after its 3-rank "
+             "dam break came out +4.9 % over five quiet jobs): **tuned**. With every rank at the "
+             "whole run's order (sessions 1-55, predict --rank-disorder none) on the same runs: "
+             "{o} (one-order-per-run/validation.json)."),
         ]
         for in_use, subdir, line in choices:
             o = untuned(subdir)

@@ -543,6 +543,16 @@ json cell_move_fit(const std::vector<Point> &pts) {
 json disorder_by_setup(const std::vector<SphRun> &runs) {
     std::map<std::pair<std::string, std::string>, std::vector<SphRun>> longest;
     auto end_of = [](const SphRun &r) { return r.intervals.back().time_s; };
+    // Runs of one configuration on two grids: the same scale, spacing, ranks, slabs, columns
+    // and record times.
+    auto same_record = [&](const SphRun &a, const SphRun &b) {
+        return a.config.scale == b.config.scale && a.config.delta == b.config.delta &&
+               a.config.ranks == b.config.ranks && a.config.decomposition == "equal" &&
+               b.config.decomposition == "equal" && a.intervals.size() == b.intervals.size() &&
+               std::abs(end_of(a) - end_of(b)) <= 1e-9 * end_of(a) &&
+               a.intervals.front().column_interactions.size() ==
+                   b.intervals.front().column_interactions.size();
+    };
     for (const auto &r : runs) {
         if (r.config.grid != "list" && r.config.grid != "table")
             continue;
@@ -562,20 +572,42 @@ json disorder_by_setup(const std::vector<SphRun> &runs) {
                       "spacing), not at its Froude time";
         // Per column too (reports since session 56): predict gives each rank the memory order
         // of its own columns.
-        if (const auto by_column = column_disorder_of(v)) {
-            const std::string why_not = by_column->unusable();
-            const char *key = why_not.empty() ? "by_column" : "by_column_unused";
-            d[key] = by_column->to_json();
+        const std::string method =
+            "interactions and descents per cell column, mean of the runs, carried to the "
+            "target by Froude time; compute per interaction = intercept + slope x descents "
+            "per interaction, fitted (one level per run) on the rank-intervals holding at "
+            "least a tenth of the interactions in the later half of each run; predict "
+            "multiplies each rank's compute by (intercept + slope D_rank) / (intercept + "
+            "slope D_all), D of the rank's columns and of all of them";
+        auto keep = [&](const ColumnDisorder &c, const char *usable_key, const char *unused_key,
+                        const std::string &how) {
+            const std::string why_not = c.unusable();
+            const char *k = why_not.empty() ? usable_key : unused_key;
+            d[k] = c.to_json();
             if (!why_not.empty())
-                d[key]["unused_because"] = why_not;
-            d[key]["method"] =
-                "interactions and descents per cell column, mean of the runs, carried to the "
-                "target by Froude time; compute per interaction = intercept + slope x descents "
-                "per interaction, fitted (one level per run) on the rank-intervals holding at "
-                "least a tenth of the interactions in the later half of each run; predict "
-                "multiplies each rank's compute by (intercept + slope D_rank) / (intercept + "
-                "slope D_all), D of the rank's columns and of all of them";
-        }
+                d[k]["unused_because"] = why_not;
+            d[k]["method"] = how;
+            return why_not.empty();
+        };
+        bool usable = false;
+        if (const auto by_column = column_disorder_of(v))
+            usable = keep(*by_column, "by_column", "by_column_unused", method);
+        // Cell+List's descents do not see its memory order; Cell+Table's runs of the same
+        // configuration (the same particles, the same migrations) do (workload.hpp), where
+        // their own cost line is usable (not a still tank's, whose order barely moves).
+        auto table_line_usable = [&](const std::vector<SphRun> &t) {
+            const auto own = column_disorder_of(t);
+            return own && own->unusable().empty();
+        };
+        if (const auto table = longest.find({key.first, "table"});
+            !usable && key.second == "list" && table != longest.end() &&
+            same_record(v.front(), table->second.front()) && table_line_usable(table->second))
+            if (const auto by_table = column_disorder_of(v, table->second))
+                keep(*by_table, "by_column", "by_column_table_order_unused",
+                     method + "; the descents are Cell+Table's runs' (descents_from) in the "
+                              "same columns at the same times, read over each Cell+List rank's "
+                              "equal slab: Cell+List's own stay at 0.86 per interaction "
+                              "whatever its memory order");
         out[key.first][key.second] = d;
     }
     return out;

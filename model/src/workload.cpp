@@ -401,26 +401,30 @@ std::string ColumnDisorder::unusable() const {
 }
 
 nlohmann::json ColumnDisorder::to_json() const {
-    return {{"source", source},
-            {"scale", scale},
-            {"cell_size", cell_size},
-            {"tank_length", tank_length},
-            {"times_s", times_s},
-            {"column_interactions", interactions},
-            {"column_descents", descents},
-            {"cost_per_interaction",
-             {{"intercept_s", intercept_s},
-              {"intercept_se_s", intercept_se_s},
-              {"slope_s_per_descent_per_interaction", slope_s},
-              {"slope_se_s_per_descent_per_interaction", slope_se_s},
-              {"r2", r2},
-              {"points", points}}}};
+    nlohmann::json j{{"source", source},
+                     {"scale", scale},
+                     {"cell_size", cell_size},
+                     {"tank_length", tank_length},
+                     {"times_s", times_s},
+                     {"column_interactions", interactions},
+                     {"column_descents", descents},
+                     {"cost_per_interaction",
+                      {{"intercept_s", intercept_s},
+                       {"intercept_se_s", intercept_se_s},
+                       {"slope_s_per_descent_per_interaction", slope_s},
+                       {"slope_se_s_per_descent_per_interaction", slope_se_s},
+                       {"r2", r2},
+                       {"points", points}}}};
+    if (!order_source.empty())
+        j["descents_from"] = order_source;
+    return j;
 }
 
 ColumnDisorder ColumnDisorder::from_json(const nlohmann::json &j, const std::string &where) {
     ColumnDisorder d;
     try {
         d.source = j.value("source", "");
+        d.order_source = j.value("descents_from", "");
         d.scale = j.at("scale").get<double>();
         d.cell_size = j.at("cell_size").get<double>();
         d.tank_length = j.at("tank_length").get<double>();
@@ -450,14 +454,17 @@ ColumnDisorder ColumnDisorder::from_json(const nlohmann::json &j, const std::str
     return d;
 }
 
-std::optional<ColumnDisorder> column_disorder_of(const std::vector<SphRun> &runs) {
+std::optional<ColumnDisorder> column_disorder_of(const std::vector<SphRun> &runs,
+                                                 const std::vector<SphRun> &order_runs) {
     if (runs.empty())
         return std::nullopt;
-    for (const auto &r : runs)
-        for (const auto &iv : r.intervals)
-            if (iv.column_interactions.empty())
-                return std::nullopt;
-    const SphRun &first = runs.front();
+    const std::vector<SphRun> &columns_of = order_runs.empty() ? runs : order_runs;
+    for (const auto *set : {&runs, &columns_of})
+        for (const auto &r : *set)
+            for (const auto &iv : r.intervals)
+                if (iv.column_interactions.empty())
+                    return std::nullopt;
+    const SphRun &first = columns_of.front();
     ColumnDisorder d;
     d.scale = first.config.scale;
     d.cell_size = first.config.cell_size;
@@ -465,39 +472,73 @@ std::optional<ColumnDisorder> column_disorder_of(const std::vector<SphRun> &runs
     const std::size_t cols = first.intervals.front().column_interactions.size();
     for (const auto &iv : first.intervals)
         d.times_s.push_back(iv.time_s);
+    auto same_record = [&](const SphRun &r) {
+        if (r.intervals.size() != d.times_s.size() || r.config.scale != d.scale ||
+            r.intervals.front().column_interactions.size() != cols)
+            return false;
+        for (std::size_t k = 0; k < r.intervals.size(); ++k)
+            if (std::abs(r.intervals[k].time_s - d.times_s[k]) > 1e-9 * d.times_s.back())
+                return false;
+        return true;
+    };
+    for (const auto *set : {&runs, &columns_of})
+        for (const auto &r : *set)
+            if (!same_record(r))
+                throw std::invalid_argument("column_disorder_of: runs of different record "
+                                            "times, scales or columns");
     d.interactions.assign(d.times_s.size(), std::vector<double>(cols, 0.0));
     d.descents = d.interactions;
+    for (const auto &r : columns_of) {
+        if (!order_runs.empty())
+            d.order_source += (d.order_source.empty() ? "" : ", ") + r.path;
+        for (std::size_t k = 0; k < r.intervals.size(); ++k)
+            for (std::size_t c = 0; c < cols; ++c) {
+                const double n = double(columns_of.size());
+                d.interactions[k][c] += r.intervals[k].column_interactions[c] / n;
+                d.descents[k][c] += r.intervals[k].column_descents[c] / n;
+            }
+    }
     std::vector<std::vector<double>> X;
     std::vector<double> y;
     std::vector<int> classes;
     for (std::size_t run = 0; run < runs.size(); ++run) {
         const SphRun &r = runs[run];
-        if (r.intervals.size() != d.times_s.size() || r.config.scale != d.scale ||
-            r.intervals.front().column_interactions.size() != cols)
-            throw std::invalid_argument("column_disorder_of: runs of different record times, "
-                                        "scales or columns");
         d.source += (d.source.empty() ? "" : ", ") + r.path;
+        // Another grid's descents are read over this run's slabs: equal ones only.
+        if (!order_runs.empty() && r.config.decomposition != "equal")
+            continue;
         const double half = 0.5 * r.intervals.back().time_s;
         for (std::size_t k = 0; k < r.intervals.size(); ++k) {
             const auto &iv = r.intervals[k];
-            for (std::size_t c = 0; c < cols; ++c) {
-                d.interactions[k][c] += iv.column_interactions[c] / double(runs.size());
-                d.descents[k][c] += iv.column_descents[c] / double(runs.size());
-            }
             if (iv.time_s < half)
                 continue;
             double all = 0;
             for (const auto &rk : iv.ranks)
                 all += rk.interactions;
+            const std::vector<int> cuts =
+                sph::equal_cuts(static_cast<int>(iv.ranks.size()), static_cast<int>(cols));
             // The ranks holding the water: a rank with a few front particles costs its fixed
             // part, not its interactions.
-            for (const auto &rk : iv.ranks)
-                if (rk.steps >= 1 && rk.field_mean > 0 && rk.interactions >= 0.1 * all &&
-                    rk.interactions > 0) {
-                    X.push_back({1.0, rk.descents / rk.interactions});
-                    y.push_back(rk.compute_s() / rk.steps / rk.interactions);
-                    classes.push_back(static_cast<int>(run));
+            for (std::size_t q = 0; q < iv.ranks.size(); ++q) {
+                const auto &rk = iv.ranks[q];
+                if (!(rk.steps >= 1 && rk.field_mean > 0 && rk.interactions >= 0.1 * all &&
+                      rk.interactions > 0))
+                    continue;
+                double D = rk.descents / rk.interactions;
+                if (!order_runs.empty()) {
+                    double i = 0, dd = 0;
+                    for (int c = cuts[q]; c < cuts[q + 1]; ++c) {
+                        i += d.interactions[k][static_cast<std::size_t>(c)];
+                        dd += d.descents[k][static_cast<std::size_t>(c)];
+                    }
+                    if (!(i > 0))
+                        continue;
+                    D = dd / i;
                 }
+                X.push_back({1.0, D});
+                y.push_back(rk.compute_s() / rk.steps / rk.interactions);
+                classes.push_back(static_cast<int>(run));
+            }
         }
     }
     if (y.size() < 4)

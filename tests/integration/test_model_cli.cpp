@@ -1498,6 +1498,14 @@ TEST(ModelCli, ReplayJobCalibratesOnTheRunsItKeeps) {
     for (const auto &p : round_a)
         expected.insert(p.filename().string());
     EXPECT_EQ(used, expected);
+    // Cell+List's per-rank memory order is read off Cell+Table's long dam break (the same
+    // configuration, the same record times), not off a still tank, whose Cell+Table line is
+    // noise.
+    const auto &list_order = model["disorder"]["dambreak"]["list"];
+    ASSERT_TRUE(list_order.contains("by_column")) << list_order.dump().substr(0, 400);
+    EXPECT_NE(list_order["by_column"].value("descents_from", "").find("cal_dambreak_s0.5_table_a"),
+              std::string::npos);
+    EXPECT_FALSE(model["disorder"]["still"]["list"].contains("by_column"));
     auto wall_sum = [](const std::vector<fs::path> &reports) {
         double s = 0;
         for (const auto &p : reports)

@@ -540,6 +540,72 @@ TEST(Workload, ColumnDisorderRecoversTheCostLineAndGivesEachSlabItsColumns) {
     EXPECT_THROW(ColumnDisorder::from_json(j, "test"), UsageError);
 }
 
+TEST(Workload, CellListReadsItsMemoryOrderOffCellTablesColumns) {
+    // A Cell+Table run and a Cell+List run of one configuration (2 ranks, 4 columns, 8
+    // records). The list's own descents stay at 0.86 per interaction; its rank's compute per
+    // interaction is planted as a + b D, D the table's descents per interaction over the rank's
+    // equal slab (columns 0-1 and 2-3) at that time, in the later half.
+    constexpr double a = 30e-9, b = 40e-9;
+    auto table_descents = [](int k) {
+        return std::vector<double>{50.0 + 10 * k, 60.0 + 5 * k, 100.0 + 20 * k, 200.0 + 40 * k};
+    };
+    auto run = [&](const std::string &grid, const std::string &decomposition) {
+        SphRun r;
+        r.path = grid + ".json";
+        r.config.grid = grid;
+        r.config.decomposition = decomposition;
+        r.config.scale = 0.5;
+        r.config.cell_size = 0.04;
+        r.config.tank_length = 0.16;
+        for (int k = 1; k <= 8; ++k) {
+            IntervalStats iv;
+            iv.time_s = 0.01 * k;
+            iv.column_interactions = {1000, 1000, 1000, 1000};
+            const auto td = table_descents(k);
+            iv.column_descents =
+                grid == "table" ? td : std::vector<double>{860.0, 860.0, 860.0, 860.0};
+            for (int rank = 0; rank < 2; ++rank) {
+                RankStats rk;
+                rk.steps = 10;
+                rk.field_mean = 100;
+                rk.interactions = 2000;
+                rk.descents = iv.column_descents[2 * rank] + iv.column_descents[2 * rank + 1];
+                const double D = (td[2 * rank] + td[2 * rank + 1]) / 2000;
+                const double per = k >= 4 ? a + b * D : 3 * a * (k % 2 + 1);
+                rk.timers["comp_s"] = per * rk.steps * rk.interactions;
+                iv.ranks.push_back(rk);
+            }
+            r.intervals.push_back(iv);
+        }
+        return r;
+    };
+    const SphRun table = run("table", "equal"), list = run("list", "equal");
+    // Its own descents cannot tell its ranks apart: no line, or one of noise.
+    const auto own = column_disorder_of({list});
+    EXPECT_TRUE(!own.has_value() || !own->unusable().empty());
+    const auto found = column_disorder_of({list}, {table});
+    ASSERT_TRUE(found.has_value());
+    const ColumnDisorder d = ColumnDisorder::from_json(found->to_json(), "test");
+    EXPECT_NEAR(d.intercept_s, a, 1e-6 * a);
+    EXPECT_NEAR(d.slope_s, b, 1e-6 * b);
+    EXPECT_EQ(d.points, 10u); // 5 later records x 2 ranks
+    EXPECT_EQ(d.source, "list.json");
+    EXPECT_EQ(d.order_source, "table.json");
+    EXPECT_EQ(d.descents[7], table_descents(8)); // the table's columns are carried
+    EXPECT_EQ(d.unusable(), "");
+    const auto f = d.rank_factors(0.08, 0.5, 0.04, 0.16, 4, {0, 2, 4});
+    const auto td = table_descents(8);
+    const double all = (td[0] + td[1] + td[2] + td[3]) / 4000;
+    EXPECT_NEAR(f[0], (a + b * (td[0] + td[1]) / 2000) / (a + b * all), 1e-9);
+    EXPECT_NEAR(f[1], (a + b * (td[2] + td[3]) / 2000) / (a + b * all), 1e-9);
+    // Another grid's columns over balanced slabs would be read over the wrong columns.
+    EXPECT_FALSE(column_disorder_of({run("list", "balanced")}, {table}).has_value());
+    // Runs of other record times cannot lend their columns.
+    SphRun shifted = table;
+    shifted.intervals[2].time_s += 0.001;
+    EXPECT_THROW((void)column_disorder_of({list}, {shifted}), std::invalid_argument);
+}
+
 TEST(Workload, PairDensityIsRecordedPerIntervalAndReadAtTheSourceTime) {
     // Two ranks whose pairs per field particle differ; the trace keeps the sum over ranks.
     SphRun r;
