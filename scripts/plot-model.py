@@ -812,6 +812,23 @@ def markdown(model, validation, args, out):
             text += (". With every rank at the whole run's memory order (one-order-per-run/): "
                      + " and ".join(fparts))
         lines.append(text + ".")
+    # The memory-order term alone (session 57): each busy rank-interval's descents per
+    # interaction as predicted (its columns' in the calibration run at the same Froude time)
+    # against the run's own count.
+    order = [(w, s.get(k)) for w, k in (("equal slabs", "descents_per_interaction_per_busy_rank_interval"),
+                                        ("balanced slabs", "descents_per_interaction_per_busy_rank_interval_balanced"))
+             if s.get(k)]
+    if order:
+        lines.append("Memory order of each busy rank-interval (Cell+Table's descents per interaction of "
+                     "its columns, as the model carried them from the calibration run at the same "
+                     "Froude time, against the run's count; the term the per-rank cost reads): "
+                     + "; ".join(f"{w}: error median {100 * x['median_error']:+.1f} %, |error| median "
+                                 f"{100 * x['median_abs_error']:.1f} %, max {100 * x['max_abs_error']:.1f} % "
+                                 f"over {x['count']}" for w, x in order)
+                     + ". The order decays with simulated time, not Froude time (model/NOTES.md, "
+                     "session 57), so a scale-1 run reads more than its half-scale calibration "
+                     "carried, and a balanced run's front rank, whose particles its re-cuts "
+                     "refile (which no calibration run does), reads far less than carried.")
     lines.append("")
     lines.append(f"Roofline: {model['roofline']['verdict']}.")
     with open(out, "w") as f:

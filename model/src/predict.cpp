@@ -670,6 +670,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 std::vector<RankStep> mean(static_cast<std::size_t>(P));
                 for (auto &m : mean)
                     m.order_factor = 0; // a mean over the samples below
+                std::vector<double> order_descents(static_cast<std::size_t>(P), 0.0),
+                    order_weight(static_cast<std::size_t>(P), 0.0);
                 double step_mean = 0;
                 for (int k = 0; k < samples_per_interval; ++k) {
                     const double at_step =
@@ -685,11 +687,12 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                         rescale_columns(src, trace.cell_size, trace.tank_length, tgt.cell_size,
                                         tgt.tank_length, tgt.columns, tgt.fluid_particles);
                     double step_s = 0;
+                    std::optional<ColumnDisorder::SlabOrder> slabs;
+                    if (c.column_disorder)
+                        slabs = c.column_disorder->slab_order(t, req.scale, tgt.cell_size,
+                                                              tgt.tank_length, tgt.columns, cuts);
                     const std::vector<double> order =
-                        c.column_disorder
-                            ? c.column_disorder->rank_factors(t, req.scale, tgt.cell_size,
-                                                              tgt.tank_length, tgt.columns, cuts)
-                            : std::vector<double>{};
+                        slabs ? c.column_disorder->factors(*slabs) : std::vector<double>{};
                     const auto ranks =
                         predict_step(recut(cols, tgt.wall_columns, cuts), density_at(trace, ts), c,
                                      req.threads, req.nodes, t, order, step_s);
@@ -697,6 +700,11 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                     for (std::size_t r = 0; r < ranks.size(); ++r) {
                         auto &m = mean[r];
                         const auto &v = ranks[r];
+                        // The rank's descents per interaction, weighted by its interactions.
+                        if (slabs && r < slabs->slabs.size() && slabs->slabs[r]) {
+                            order_descents[r] += *slabs->slabs[r] * v.interactions;
+                            order_weight[r] += v.interactions;
+                        }
                         peak_particles[r] =
                             std::max(peak_particles[r], v.field + v.walls + v.ghost);
                         peak_interactions[r] = std::max(peak_interactions[r], v.interactions);
@@ -734,6 +742,11 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                   {"comm_s", m.comm_s * n},
                                   {"wait_s", m.wait_s * n},
                                   {"idle_s", m.idle_s * n}});
+                    // The memory order the factor came from, where it is the grid's own
+                    // descents (validate compares it with the run's): Cell+List's line reads
+                    // Cell+Table's, which a list run does not count.
+                    if (order_weight[r] > 0 && c.column_disorder->order_source.empty())
+                        jr.back()["descents_per_interaction"] = order_descents[r] / order_weight[r];
                     RankStep &t = tot[r];
                     t.compute_s += m.compute_s * n;
                     t.comm_s += m.comm_s * n;

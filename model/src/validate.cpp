@@ -144,6 +144,10 @@ json validate(const json &header, const std::vector<json> &predictions,
     // Within the cores, and time-shared apart (a shared rank's timers also hold the time its
     // core ran another rank).
     std::vector<double> rank_compute_errors, rank_compute_errors_shared;
+    // The memory order each busy rank-interval was predicted at (descents per interaction of
+    // its columns, the grid's own) against the run's count, signed: equal slabs, and balanced
+    // ones apart (their re-cuts refile particles, which no calibration run does).
+    std::vector<double> order_errors, order_errors_balanced;
     // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
     std::vector<double> own_kind_errors;
     // The inline errors by the exchange benchmark alone (the inline prediction above the cores
@@ -214,8 +218,19 @@ json validate(const json &header, const std::vector<json> &predictions,
         // Per interval: communication measured, predicted by the model and inline.
         json series = json::array();
         const auto &piv = p->at("intervals");
+        std::vector<double> order_here; // this configuration's, signed
         if (piv.size() == m.intervals.size())
             for (std::size_t k = 0; k < piv.size(); ++k) {
+                const auto &pk = piv[k].at("ranks");
+                const auto &mk = m.intervals[k].ranks;
+                double all = 0;
+                for (const auto &r : mk)
+                    all += r.interactions;
+                for (std::size_t q = 0; q < pk.size() && q < mk.size(); ++q)
+                    if (pk[q].contains("descents_per_interaction") && mk[q].interactions > 0 &&
+                        mk[q].interactions >= 0.1 * all && mk[q].descents > 0)
+                        order_here.push_back(rel(pk[q].at("descents_per_interaction").get<double>(),
+                                                 mk[q].descents / mk[q].interactions));
                 double mc = 0, ic = 0, hc = 0, pc = 0, probe = 0, probed = 0;
                 sph::ShiftTimes ms{}, is{};
                 double ic_own_kind = 0; // inline, by the rule before session 32
@@ -371,6 +386,18 @@ json validate(const json &header, const std::vector<json> &predictions,
                 {"thesis_bound_max_rank", pm.at("thesis_bound_bytes_max_rank")}};
             memory_errors.push_back(std::abs(rel(predicted_rss, measured_rss)));
         }
+        if (!order_here.empty()) {
+            std::vector<double> abs_here;
+            for (double e : order_here)
+                abs_here.push_back(std::abs(e));
+            const Summary a = summarize(abs_here);
+            row["memory_order"] = {{"rank_intervals", order_here.size()},
+                                   {"descents_per_interaction_error_median", median(order_here)},
+                                   {"descents_per_interaction_abs_error_median", a.median},
+                                   {"descents_per_interaction_abs_error_max", a.max}};
+            auto &to = m.config.decomposition == "balanced" ? order_errors_balanced : order_errors;
+            to.insert(to.end(), order_here.begin(), order_here.end());
+        }
         // Compute per rank: the work's share and its cost per rank (the memory order of the
         // rank's own columns, session 56), which the sum over ranks hides.
         const json &pr = p->at("per_rank");
@@ -404,6 +431,19 @@ json validate(const json &header, const std::vector<json> &predictions,
         const Summary s = summarize(v);
         return {{"median", s.median}, {"max", s.max}, {"count", s.count}};
     };
+    // Signed errors: their median (the bias) beside the median and max of their sizes.
+    auto signed_summary = [](const std::vector<double> &v) -> json {
+        if (v.empty())
+            return nullptr;
+        std::vector<double> a;
+        for (double e : v)
+            a.push_back(std::abs(e));
+        const Summary s = summarize(a);
+        return {{"median_error", median(v)},
+                {"median_abs_error", s.median},
+                {"max_abs_error", s.max},
+                {"count", s.count}};
+    };
     out["configurations"] = rows;
     out["unmatched_runs"] = unmatched;
     json by_shift;
@@ -422,6 +462,9 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"peak_rss_abs_error", summary(memory_errors)},
         {"compute_per_busy_rank_abs_error", summary(rank_compute_errors)},
         {"compute_per_busy_rank_abs_error_time_shared", summary(rank_compute_errors_shared)},
+        {"descents_per_interaction_per_busy_rank_interval", signed_summary(order_errors)},
+        {"descents_per_interaction_per_busy_rank_interval_balanced",
+         signed_summary(order_errors_balanced)},
         {"wall_abs_error_speed_corrected", summary(corrected_errors)},
         {"speed_factor",
          speed_factors.empty()
@@ -662,6 +705,15 @@ std::string validation_table(const json &v) {
                     "%s, |error|: median %.1f%%, max %.1f%% over %d ranks\n",
                     where, 100 * d(sm.at(key).at("median")), 100 * d(sm.at(key).at("max")),
                     sm.at(key).at("count").get<int>());
+    for (const auto &[key, where] :
+         {std::pair{"descents_per_interaction_per_busy_rank_interval", "equal slabs"},
+          std::pair{"descents_per_interaction_per_busy_rank_interval_balanced", "balanced slabs"}})
+        if (sm.contains(key) && !sm.at(key).is_null())
+            s += fmt("  memory order (descents per interaction) of each busy rank-interval, %s: "
+                     "error median %+.1f%%, |error| median %.1f%%, max %.1f%% over %d\n",
+                     where, 100 * d(sm.at(key).at("median_error")),
+                     100 * d(sm.at(key).at("median_abs_error")),
+                     100 * d(sm.at(key).at("max_abs_error")), sm.at(key).at("count").get<int>());
     for (const auto &u : v.at("unmatched_runs"))
         s += "  not in any prediction: " + u.get<std::string>() + "\n";
     return s;

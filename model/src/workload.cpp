@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <sstream>
 
 namespace sphperf::model {
@@ -351,10 +352,10 @@ Disorder disorder_of(const std::vector<SphRun> &runs) {
 
 namespace sphperf::model {
 
-std::vector<double> ColumnDisorder::rank_factors(double target_time_s, double target_scale,
-                                                 double target_cell, double target_tank,
-                                                 int target_columns,
-                                                 const std::vector<int> &cuts) const {
+ColumnDisorder::SlabOrder ColumnDisorder::slab_order(double target_time_s, double target_scale,
+                                                     double target_cell, double target_tank,
+                                                     int target_columns,
+                                                     const std::vector<int> &cuts) const {
     const double ts = source_time(target_time_s, scale, target_scale);
     if (times_s.empty() || ts > times_s.back() * (1 + 1e-9))
         throw UsageError("the model's per-column memory order (" + source + ") ends at " +
@@ -377,18 +378,35 @@ std::vector<double> ColumnDisorder::rank_factors(double target_time_s, double ta
                                        target_columns, total_i);
     const auto desc = rescale_columns(src_d, cell_size, tank_length, target_cell, target_tank,
                                       target_columns, total_d);
-    const double base = intercept_s + slope_s * (total_i > 0 ? total_d / total_i : 0.0);
-    std::vector<double> out;
+    SlabOrder out;
+    out.all = total_i > 0 ? total_d / total_i : 0.0;
     for (std::size_t r = 0; r + 1 < cuts.size(); ++r) {
         double i = 0, d = 0;
         for (int c = cuts[r]; c < cuts[r + 1]; ++c) {
             i += inter[static_cast<std::size_t>(c)];
             d += desc[static_cast<std::size_t>(c)];
         }
-        const double own = intercept_s + slope_s * (i > 0 ? d / i : 0.0);
-        out.push_back(i > 0 && base > 0 && own > 0 ? own / base : 1.0);
+        out.slabs.push_back(i > 0 ? std::optional<double>(d / i) : std::nullopt);
     }
     return out;
+}
+
+std::vector<double> ColumnDisorder::factors(const SlabOrder &order) const {
+    const double base = intercept_s + slope_s * order.all;
+    std::vector<double> out;
+    for (const auto &d : order.slabs) {
+        const double own = d ? intercept_s + slope_s * *d : 0.0;
+        out.push_back(d && base > 0 && own > 0 ? own / base : 1.0);
+    }
+    return out;
+}
+
+std::vector<double> ColumnDisorder::rank_factors(double target_time_s, double target_scale,
+                                                 double target_cell, double target_tank,
+                                                 int target_columns,
+                                                 const std::vector<int> &cuts) const {
+    return factors(
+        slab_order(target_time_s, target_scale, target_cell, target_tank, target_columns, cuts));
 }
 
 std::string ColumnDisorder::unusable() const {

@@ -1147,6 +1147,53 @@ TEST(Validate, ReportsEachBusyRanksComputeApart) {
     EXPECT_EQ(v["summary"]["compute_per_busy_rank_abs_error_time_shared"]["count"], 2);
 }
 
+// The memory order each busy rank was predicted at (descents per interaction of its columns)
+// against the run's count: rank 0 predicted 10 % high, rank 1 20 % low, rank 2 (a few front
+// particles, under a tenth of the interactions) left out; a balanced run's apart.
+TEST(Validate, ReportsEachBusyRanksMemoryOrderApart) {
+    auto m = measured_run(1.0);
+    m.config.ranks = 3;
+    RankStats back = m.intervals[0].ranks[0], front = back, dry = back;
+    back.interactions = 1000;
+    back.descents = 200;
+    front.interactions = 1000;
+    front.descents = 400;
+    dry.interactions = 50;
+    dry.descents = 40;
+    m.intervals[0].ranks = {back, front, dry};
+    auto p = prediction(1.0);
+    auto &c = p["configurations"][0];
+    c["ranks"] = 3;
+    const nlohmann::json one = c["per_rank"][0];
+    c["per_rank"] = {one, one, one};
+    const nlohmann::json rank = c["intervals"][0]["ranks"][0];
+    c["intervals"][0]["ranks"] = {rank, rank, rank};
+    for (auto [r, d] : {std::pair{0, 0.22}, {1, 0.32}, {2, 0.9}})
+        c["intervals"][0]["ranks"][r]["descents_per_interaction"] = d;
+    bool exceeded = false;
+    auto v = validate({}, {p}, {m}, {}, exceeded);
+    const auto &mo = v["configurations"][0]["memory_order"];
+    EXPECT_EQ(mo["rank_intervals"], 2);
+    EXPECT_NEAR(mo["descents_per_interaction_abs_error_max"].get<double>(), 0.2, 1e-12);
+    const auto &sm = v["summary"]["descents_per_interaction_per_busy_rank_interval"];
+    EXPECT_EQ(sm["count"], 2);
+    EXPECT_NEAR(sm["median_error"].get<double>(), -0.05, 1e-12); // (+0.1 - 0.2) / 2
+    EXPECT_NEAR(sm["median_abs_error"].get<double>(), 0.15, 1e-12);
+    EXPECT_TRUE(v["summary"]["descents_per_interaction_per_busy_rank_interval_balanced"].is_null());
+    EXPECT_NE(validation_table(v).find("memory order (descents per interaction)"),
+              std::string::npos);
+    m.config.decomposition = "balanced";
+    p["configurations"][0]["decomposition"] = "balanced";
+    v = validate({}, {p}, {m}, {}, exceeded);
+    EXPECT_TRUE(v["summary"]["descents_per_interaction_per_busy_rank_interval"].is_null());
+    EXPECT_EQ(v["summary"]["descents_per_interaction_per_busy_rank_interval_balanced"]["count"], 2);
+    // A prediction without it (Cell+Sorted, --rank-disorder none, Cell+List): nothing.
+    for (auto &r : c["intervals"][0]["ranks"])
+        r.erase("descents_per_interaction");
+    v = validate({}, {p}, {m}, {}, exceeded);
+    EXPECT_FALSE(v["configurations"][0].contains("memory_order"));
+}
+
 // The speed gauge (session 50): a run measured on a host 1.3 times slower, its gauge 1.3 times
 // slower too, is predicted 20 % high at the reference speed and 1.2 x 1.3 - 1 = +56 % high at its
 // own speed. The band stays the prediction's; a run without gauge samples, or a prediction

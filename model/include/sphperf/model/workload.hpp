@@ -128,10 +128,20 @@ struct ColumnDisorder {
     double intercept_s = 0, slope_s = 0, intercept_se_s = 0, slope_se_s = 0, r2 = 0;
     std::size_t points = 0;
 
-    // Every slab's compute per interaction over the whole water's, the columns carried to the
-    // target (scale, cell size, tank length, columns) at its simulated time `target_time_s`:
-    // (a + b D_slab) / (a + b D_all). 1 for a slab without interactions. Throws UsageError
+    // Descents per interaction of every slab of `cuts` (none for a slab without interactions)
+    // and of all the columns, the columns carried to the target (scale, cell size, tank
+    // length, columns) at its simulated time `target_time_s` by Froude time. Throws UsageError
     // naming the time needed when the record ends before it.
+    struct SlabOrder {
+        std::vector<std::optional<double>> slabs;
+        double all = 0;
+    };
+    SlabOrder slab_order(double target_time_s, double target_scale, double target_cell,
+                         double target_tank, int target_columns,
+                         const std::vector<int> &cuts) const;
+    // Every slab's compute per interaction over the whole water's: (a + b D_slab) /
+    // (a + b D_all); 1 for a slab without interactions.
+    std::vector<double> factors(const SlabOrder &order) const;
     std::vector<double> rank_factors(double target_time_s, double target_scale, double target_cell,
                                      double target_tank, int target_columns,
                                      const std::vector<int> &cuts) const;
