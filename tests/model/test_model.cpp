@@ -454,6 +454,42 @@ TEST(Workload, DisorderFollowsSimulatedTimeAndAcousticTimeForAnotherSpacing) {
     }
 }
 
+namespace {
+// A 2-rank run at scale 0.5 over 8 records (0.01 s apart) of 4 columns of 1000 interactions
+// each, rank 0 holding columns 0-1 and rank 1 columns 2-3: the columns' descents at record k are
+// column_descents(k), and each rank's compute per interaction is per_interaction(k, D), D the
+// descents per interaction of its columns in order_descents(k) (the memory order that sets its
+// cost; its own columns' unless another grid's stands for them).
+template <class Columns, class Order, class Cost>
+SphRun two_rank_column_run(const std::string &path, Columns column_descents, Order order_descents,
+                           Cost per_interaction) {
+    SphRun r;
+    r.path = path;
+    r.config.scale = 0.5;
+    r.config.cell_size = 0.04;
+    r.config.tank_length = 0.16;
+    for (int k = 1; k <= 8; ++k) {
+        IntervalStats iv;
+        iv.time_s = 0.01 * k;
+        iv.column_interactions = {1000, 1000, 1000, 1000};
+        iv.column_descents = column_descents(k);
+        const std::vector<double> order = order_descents(k);
+        for (int rank = 0; rank < 2; ++rank) {
+            RankStats rk;
+            rk.steps = 10;
+            rk.field_mean = 100;
+            rk.interactions = 2000;
+            rk.descents = iv.column_descents[2 * rank] + iv.column_descents[2 * rank + 1];
+            const double D = (order[2 * rank] + order[2 * rank + 1]) / 2000;
+            rk.timers["comp_s"] = per_interaction(k, D) * rk.steps * rk.interactions;
+            iv.ranks.push_back(rk);
+        }
+        r.intervals.push_back(iv);
+    }
+    return r;
+}
+} // namespace
+
 TEST(Workload, ColumnDisorderRecoversTheCostLineAndGivesEachSlabItsColumns) {
     // Two rounds (host levels 1 and 1.2) of a 2-rank run over 8 records, 4 columns of 1000
     // interactions each; rank 0 holds columns 0-1, rank 1 columns 2-3. In the later half a
@@ -464,30 +500,10 @@ TEST(Workload, ColumnDisorderRecoversTheCostLineAndGivesEachSlabItsColumns) {
         return std::vector<double>{50.0 + 10 * k, 60.0 + 5 * k, 100.0 + 20 * k, 200.0 + 40 * k};
     };
     auto run = [&](double level) {
-        SphRun r;
-        r.path = "round" + std::to_string(level);
-        r.config.scale = 0.5;
-        r.config.cell_size = 0.04;
-        r.config.tank_length = 0.16;
-        for (int k = 1; k <= 8; ++k) {
-            IntervalStats iv;
-            iv.time_s = 0.01 * k;
-            iv.column_interactions = {1000, 1000, 1000, 1000};
-            iv.column_descents = descents(k);
-            for (int rank = 0; rank < 2; ++rank) {
-                RankStats rk;
-                rk.steps = 10;
-                rk.field_mean = 100;
-                rk.interactions = 2000;
-                rk.descents = iv.column_descents[2 * rank] + iv.column_descents[2 * rank + 1];
-                const double per = k >= 4 ? level * (a + b * rk.descents / rk.interactions)
-                                          : 3 * a * (k % 2 + 1); // no relation to D
-                rk.timers["comp_s"] = per * rk.steps * rk.interactions;
-                iv.ranks.push_back(rk);
-            }
-            r.intervals.push_back(iv);
-        }
-        return r;
+        return two_rank_column_run(
+            "round" + std::to_string(level), descents, descents, [&](int k, double D) {
+                return k >= 4 ? level * (a + b * D) : 3 * a * (k % 2 + 1); // no relation to D
+            });
     };
     const auto found = column_disorder_of({run(1.0), run(1.2)});
     ASSERT_TRUE(found.has_value());
@@ -550,33 +566,16 @@ TEST(Workload, CellListReadsItsMemoryOrderOffCellTablesColumns) {
         return std::vector<double>{50.0 + 10 * k, 60.0 + 5 * k, 100.0 + 20 * k, 200.0 + 40 * k};
     };
     auto run = [&](const std::string &grid, const std::string &decomposition) {
-        SphRun r;
-        r.path = grid + ".json";
+        SphRun r = two_rank_column_run(
+            grid + ".json",
+            [&](int k) {
+                return grid == "table" ? table_descents(k)
+                                       : std::vector<double>{860.0, 860.0, 860.0, 860.0};
+            },
+            table_descents,
+            [&](int k, double D) { return k >= 4 ? a + b * D : 3 * a * (k % 2 + 1); });
         r.config.grid = grid;
         r.config.decomposition = decomposition;
-        r.config.scale = 0.5;
-        r.config.cell_size = 0.04;
-        r.config.tank_length = 0.16;
-        for (int k = 1; k <= 8; ++k) {
-            IntervalStats iv;
-            iv.time_s = 0.01 * k;
-            iv.column_interactions = {1000, 1000, 1000, 1000};
-            const auto td = table_descents(k);
-            iv.column_descents =
-                grid == "table" ? td : std::vector<double>{860.0, 860.0, 860.0, 860.0};
-            for (int rank = 0; rank < 2; ++rank) {
-                RankStats rk;
-                rk.steps = 10;
-                rk.field_mean = 100;
-                rk.interactions = 2000;
-                rk.descents = iv.column_descents[2 * rank] + iv.column_descents[2 * rank + 1];
-                const double D = (td[2 * rank] + td[2 * rank + 1]) / 2000;
-                const double per = k >= 4 ? a + b * D : 3 * a * (k % 2 + 1);
-                rk.timers["comp_s"] = per * rk.steps * rk.interactions;
-                iv.ranks.push_back(rk);
-            }
-            r.intervals.push_back(iv);
-        }
         return r;
     };
     const SphRun table = run("table", "equal"), list = run("list", "equal");
