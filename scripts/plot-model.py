@@ -812,6 +812,16 @@ def markdown(model, validation, args, out):
             text += (". With every rank at the whole run's memory order (one-order-per-run/): "
                      + " and ".join(fparts))
         lines.append(text + ".")
+    # The workload term alone (session 57): each busy rank-interval's field particles as the
+    # re-cut trace gave them against the run's.
+    if s.get("field_per_busy_rank_interval"):
+        x = s["field_per_busy_rank_interval"]
+        lines.append("Workload of each busy rank-interval (field particles: the calibration trace's "
+                     "columns at the same Froude time, stretched onto the run's and re-cut into its "
+                     f"slabs, against the run's mean): error median {100 * x['median_error']:+.1f} %, "
+                     f"|error| median {100 * x['median_abs_error']:.1f} %, max "
+                     f"{100 * x['max_abs_error']:.1f} % over {x['count']} (the Froude similarity "
+                     "and the re-cut alone).")
     # The memory-order term alone (session 57): each busy rank-interval's descents per
     # interaction as predicted (its columns' in the calibration run at the same Froude time)
     # against the run's own count.

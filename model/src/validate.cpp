@@ -148,6 +148,10 @@ json validate(const json &header, const std::vector<json> &predictions,
     // its columns, the grid's own) against the run's count, signed: equal slabs, and balanced
     // ones apart (their re-cuts refile particles, which no calibration run does).
     std::vector<double> order_errors, order_errors_balanced;
+    // The workload each busy rank-interval was predicted to hold (the calibration trace's
+    // columns at the same Froude time, stretched onto the target's and re-cut into its slabs)
+    // against the run's mean field particles, signed: the re-cut and Froude similarity alone.
+    std::vector<double> field_errors;
     // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
     std::vector<double> own_kind_errors;
     // The inline errors by the exchange benchmark alone (the inline prediction above the cores
@@ -218,7 +222,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         // Per interval: communication measured, predicted by the model and inline.
         json series = json::array();
         const auto &piv = p->at("intervals");
-        std::vector<double> order_here; // this configuration's, signed
+        std::vector<double> order_here, field_here; // this configuration's, signed
         if (piv.size() == m.intervals.size())
             for (std::size_t k = 0; k < piv.size(); ++k) {
                 const auto &pk = piv[k].at("ranks");
@@ -226,11 +230,15 @@ json validate(const json &header, const std::vector<json> &predictions,
                 double all = 0;
                 for (const auto &r : mk)
                     all += r.interactions;
-                for (std::size_t q = 0; q < pk.size() && q < mk.size(); ++q)
-                    if (pk[q].contains("descents_per_interaction") && mk[q].interactions > 0 &&
-                        mk[q].interactions >= 0.1 * all && mk[q].descents > 0)
+                for (std::size_t q = 0; q < pk.size() && q < mk.size(); ++q) {
+                    const bool busy = mk[q].interactions > 0 && mk[q].interactions >= 0.1 * all;
+                    if (busy && mk[q].field_mean > 0 && pk[q].contains("field"))
+                        field_here.push_back(
+                            rel(pk[q].at("field").get<double>(), mk[q].field_mean));
+                    if (busy && pk[q].contains("descents_per_interaction") && mk[q].descents > 0)
                         order_here.push_back(rel(pk[q].at("descents_per_interaction").get<double>(),
                                                  mk[q].descents / mk[q].interactions));
+                }
                 double mc = 0, ic = 0, hc = 0, pc = 0, probe = 0, probed = 0;
                 sph::ShiftTimes ms{}, is{};
                 double ic_own_kind = 0; // inline, by the rule before session 32
@@ -386,6 +394,17 @@ json validate(const json &header, const std::vector<json> &predictions,
                 {"thesis_bound_max_rank", pm.at("thesis_bound_bytes_max_rank")}};
             memory_errors.push_back(std::abs(rel(predicted_rss, measured_rss)));
         }
+        if (!field_here.empty()) {
+            std::vector<double> abs_here;
+            for (double e : field_here)
+                abs_here.push_back(std::abs(e));
+            const Summary a = summarize(abs_here);
+            row["workload"] = {{"rank_intervals", field_here.size()},
+                               {"field_error_median", median(field_here)},
+                               {"field_abs_error_median", a.median},
+                               {"field_abs_error_max", a.max}};
+            field_errors.insert(field_errors.end(), field_here.begin(), field_here.end());
+        }
         if (!order_here.empty()) {
             std::vector<double> abs_here;
             for (double e : order_here)
@@ -462,6 +481,7 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"peak_rss_abs_error", summary(memory_errors)},
         {"compute_per_busy_rank_abs_error", summary(rank_compute_errors)},
         {"compute_per_busy_rank_abs_error_time_shared", summary(rank_compute_errors_shared)},
+        {"field_per_busy_rank_interval", signed_summary(field_errors)},
         {"descents_per_interaction_per_busy_rank_interval", signed_summary(order_errors)},
         {"descents_per_interaction_per_busy_rank_interval_balanced",
          signed_summary(order_errors_balanced)},
@@ -705,6 +725,14 @@ std::string validation_table(const json &v) {
                     "%s, |error|: median %.1f%%, max %.1f%% over %d ranks\n",
                     where, 100 * d(sm.at(key).at("median")), 100 * d(sm.at(key).at("max")),
                     sm.at(key).at("count").get<int>());
+    if (sm.contains("field_per_busy_rank_interval") &&
+        !sm.at("field_per_busy_rank_interval").is_null()) {
+        const auto &f = sm.at("field_per_busy_rank_interval");
+        s += fmt("  field particles of each busy rank-interval (the trace re-cut at the same "
+                 "Froude time): error median %+.1f%%, |error| median %.1f%%, max %.1f%% over %d\n",
+                 100 * d(f.at("median_error")), 100 * d(f.at("median_abs_error")),
+                 100 * d(f.at("max_abs_error")), f.at("count").get<int>());
+    }
     for (const auto &[key, where] :
          {std::pair{"descents_per_interaction_per_busy_rank_interval", "equal slabs"},
           std::pair{"descents_per_interaction_per_busy_rank_interval_balanced", "balanced slabs"}})

@@ -1147,9 +1147,10 @@ TEST(Validate, ReportsEachBusyRanksComputeApart) {
 }
 
 // The memory order each busy rank was predicted at (descents per interaction of its columns)
-// against the run's count: rank 0 predicted 10 % high, rank 1 20 % low, rank 2 (a few front
-// particles, under a tenth of the interactions) left out; a balanced run's apart.
-TEST(Validate, ReportsEachBusyRanksMemoryOrderApart) {
+// and the field particles it was predicted to hold, against the run's: rank 0 predicted 10 %
+// high (field 5 % high), rank 1 20 % low (field exact), rank 2 (a few front particles, under a
+// tenth of the interactions) left out; a balanced run's memory order apart.
+TEST(Validate, ReportsEachBusyRanksMemoryOrderAndWorkloadApart) {
     auto m = measured_run(1.0);
     m.config.ranks = 3;
     RankStats back = m.intervals[0].ranks[0], front = back, dry = back;
@@ -1169,6 +1170,11 @@ TEST(Validate, ReportsEachBusyRanksMemoryOrderApart) {
     c["intervals"][0]["ranks"] = {rank, rank, rank};
     for (auto [r, d] : {std::pair{0, 0.22}, {1, 0.32}, {2, 0.9}})
         c["intervals"][0]["ranks"][r]["descents_per_interaction"] = d;
+    for (auto [r, field, predicted] :
+         {std::tuple{0, 400.0, 420.0}, {1, 300.0, 300.0}, {2, 10.0, 30.0}}) {
+        m.intervals[0].ranks[static_cast<std::size_t>(r)].field_mean = field;
+        c["intervals"][0]["ranks"][r]["field"] = predicted;
+    }
     bool exceeded = false;
     auto v = validate({}, {p}, {m}, {}, exceeded);
     const auto &mo = v["configurations"][0]["memory_order"];
@@ -1179,6 +1185,13 @@ TEST(Validate, ReportsEachBusyRanksMemoryOrderApart) {
     EXPECT_NEAR(sm["median_error"].get<double>(), -0.05, 1e-12); // (+0.1 - 0.2) / 2
     EXPECT_NEAR(sm["median_abs_error"].get<double>(), 0.15, 1e-12);
     EXPECT_TRUE(v["summary"]["descents_per_interaction_per_busy_rank_interval_balanced"].is_null());
+    const auto &wl = v["configurations"][0]["workload"];
+    EXPECT_EQ(wl["rank_intervals"], 2);
+    EXPECT_NEAR(wl["field_abs_error_max"].get<double>(), 0.05, 1e-12);
+    EXPECT_NEAR(v["summary"]["field_per_busy_rank_interval"]["median_error"].get<double>(), 0.025,
+                1e-12);
+    EXPECT_NE(validation_table(v).find("field particles of each busy rank-interval"),
+              std::string::npos);
     EXPECT_NE(validation_table(v).find("memory order (descents per interaction)"),
               std::string::npos);
     m.config.decomposition = "balanced";
