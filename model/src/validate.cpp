@@ -46,6 +46,21 @@ const json *match(const std::vector<json> &predictions, const SphRun &m) {
     return nullptr;
 }
 
+// Signed errors: their median (the bias) beside the median and max of their sizes; null when
+// there are none.
+json signed_summary(const std::vector<double> &v) {
+    if (v.empty())
+        return nullptr;
+    std::vector<double> a;
+    for (double e : v)
+        a.push_back(std::abs(e));
+    const Summary s = summarize(a);
+    return {{"median_error", median(v)},
+            {"median_abs_error", s.median},
+            {"max_abs_error", s.max},
+            {"count", s.count}};
+}
+
 // A measured wall time against the prediction's band (predict: wall_band, +-wall_band_sds
 // standard deviations of ln(time)); null without a band. Appends |z| to `z_abs` and the band's
 // deviation to `sds`.
@@ -394,29 +409,12 @@ json validate(const json &header, const std::vector<json> &predictions,
                 {"thesis_bound_max_rank", pm.at("thesis_bound_bytes_max_rank")}};
             memory_errors.push_back(std::abs(rel(predicted_rss, measured_rss)));
         }
-        if (!field_here.empty()) {
-            std::vector<double> abs_here;
-            for (double e : field_here)
-                abs_here.push_back(std::abs(e));
-            const Summary a = summarize(abs_here);
-            row["workload"] = {{"rank_intervals", field_here.size()},
-                               {"field_error_median", median(field_here)},
-                               {"field_abs_error_median", a.median},
-                               {"field_abs_error_max", a.max}};
-            field_errors.insert(field_errors.end(), field_here.begin(), field_here.end());
-        }
-        if (!order_here.empty()) {
-            std::vector<double> abs_here;
-            for (double e : order_here)
-                abs_here.push_back(std::abs(e));
-            const Summary a = summarize(abs_here);
-            row["memory_order"] = {{"rank_intervals", order_here.size()},
-                                   {"descents_per_interaction_error_median", median(order_here)},
-                                   {"descents_per_interaction_abs_error_median", a.median},
-                                   {"descents_per_interaction_abs_error_max", a.max}};
-            auto &to = m.config.decomposition == "balanced" ? order_errors_balanced : order_errors;
-            to.insert(to.end(), order_here.begin(), order_here.end());
-        }
+        // The workload and the memory order per busy rank-interval, signed (null: none).
+        row["workload"] = signed_summary(field_here);
+        field_errors.insert(field_errors.end(), field_here.begin(), field_here.end());
+        row["memory_order"] = signed_summary(order_here);
+        auto &to = m.config.decomposition == "balanced" ? order_errors_balanced : order_errors;
+        to.insert(to.end(), order_here.begin(), order_here.end());
         // Compute per rank: the work's share and its cost per rank (the memory order of the
         // rank's own columns, session 56), which the sum over ranks hides.
         const json &pr = p->at("per_rank");
@@ -449,19 +447,6 @@ json validate(const json &header, const std::vector<json> &predictions,
             return nullptr;
         const Summary s = summarize(v);
         return {{"median", s.median}, {"max", s.max}, {"count", s.count}};
-    };
-    // Signed errors: their median (the bias) beside the median and max of their sizes.
-    auto signed_summary = [](const std::vector<double> &v) -> json {
-        if (v.empty())
-            return nullptr;
-        std::vector<double> a;
-        for (double e : v)
-            a.push_back(std::abs(e));
-        const Summary s = summarize(a);
-        return {{"median_error", median(v)},
-                {"median_abs_error", s.median},
-                {"max_abs_error", s.max},
-                {"count", s.count}};
     };
     out["configurations"] = rows;
     out["unmatched_runs"] = unmatched;
