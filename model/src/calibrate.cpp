@@ -14,7 +14,6 @@
 #include <map>
 #include <numeric>
 #include <optional>
-#include <optional>
 #include <set>
 #include <sstream>
 
