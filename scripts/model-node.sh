@@ -213,6 +213,13 @@ calibrate_round() { # calibrate_round LABEL
 sorted_runs() {
     sph 2 "cal_dambreak_s0.5_sorted_$1" --setup dambreak --scale 0.5 --grid sorted \
         --steps "$c_steps" --interval "$c_interval"
+    # A second scale at 1 thread, on 1 rank as Cell+List's and Cell+Table's (since session 58):
+    # with every 1-thread run at 0.5, cross-validation kept interactions alone, and on the
+    # 512-bit build a scale-1 dam break on 2 ranks costs 8-9 % less per interaction than the
+    # 0.5 one (three alternations each), which put the sorted 2-rank runs +7 to +13 % high in
+    # session 58's first three jobs (model/NOTES.md, session 58). 300 steps: about 0.1 s.
+    sph 1 "cal_dambreak_s0.25_sorted_$1" --setup dambreak --scale 0.25 --grid sorted \
+        --steps "$c25_steps" --interval "$c_interval"
     sph 2 "cal_still_s0.5_sorted_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     # Above the cores (every rank busy): the app's own time-sharing overhead at 1.5 ranks per
@@ -417,6 +424,11 @@ fi
 # Without the list and table dam breaks at scale 0.25 (sessions 46-53's calibration: two scales).
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.25_(list|table)_')
 beside model_and_validate "$out/list-table-two-scales" levelled-one-se froude
+mapfile -t cal_reports < <(model_runs)
+# Without Cell+Sorted's 1-rank dam breaks at 0.25 (sessions 37-57's calibration: every 1-thread
+# Cell+Sorted run at 0.5).
+mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.25_sorted_')
+beside model_and_validate "$out/sorted-one-scale" levelled-one-se froude
 mapfile -t cal_reports < <(model_runs)
 # Without the 2-thread dam breaks at scale 0.35 (sessions 37-51's calibration: at 2 threads
 # the dam break at 0.7 and the still tank at 0.5 only).

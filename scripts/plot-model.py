@@ -645,6 +645,16 @@ def markdown(model, validation, args, out):
              "stored jobs were replayed before the change: **tuned**. With the dam break at 0.7 "
              "only (sessions 37-51's calibration) on the same runs: {o} "
              "(two-thread-one-scale/validation.json)."),
+            (any("_s0.25_sorted_" in r["path"] for r in model["calibration_runs"]),
+             "sorted-one-scale",
+             "Cell+Sorted's 1-thread runs at a second scale, its dam break at 0.25 on 1 rank "
+             "(300 steps, rounds a, b and c), since session 58: with every 1-thread Cell+Sorted "
+             "run at 0.5, cross-validation kept interactions alone, and on the 512-bit build "
+             "(SPHPERF_VECTOR_WIDTH) a scale-1 dam break on 2 ranks cost 8-9 % less per "
+             "interaction than the 0.5 one; the sorted 2-rank runs came out +7 to +13 % in the "
+             "session's first three main jobs, and one of them was replayed with such runs made "
+             "afterwards before the change: **tuned**. Without them (sessions 37-57's "
+             "calibration) on the same runs: {o} (sorted-one-scale/validation.json)."),
             ((model.get("speed_gauge") or {}).get("mode") == "interval",
              "mean-gauge-window",
              "An interval's speed gauge as the compute-weighted median over +-1 interval "

@@ -1111,7 +1111,7 @@ json segment_shares(const std::vector<const SphRun *> &runs) {
 }
 } // namespace
 
-json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode) {
+json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference rule) {
     json out{{"applied", false}};
     if (mode == SpeedGauge::off) {
         out["reason"] = "calibrate --speed-gauge off";
@@ -1132,10 +1132,24 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode) {
         out["reason"] = "no runs";
         return out;
     }
-    const double reference = median(gauge);
+    const double pooled = median(gauge);
+    // Each run's reference: its grid and thread count's median gauge, or the pooled one.
+    std::map<std::pair<std::string, int>, std::vector<double>> groups;
+    for (std::size_t i = 0; i < runs.size(); ++i)
+        groups[{runs[i].config.grid, runs[i].config.threads}].push_back(gauge[i]);
+    json references = json::array();
+    for (const auto &[key, g] : groups)
+        references.push_back({{"grid", key.first},
+                              {"threads", key.second},
+                              {"reference_cpu_s_per_sample", median(g)},
+                              {"runs", g.size()}});
     json list = json::array();
     std::vector<double> logs;
     for (std::size_t i = 0; i < runs.size(); ++i) {
+        const double reference =
+            rule == GaugeReference::grid
+                ? median(groups.at({runs[i].config.grid, runs[i].config.threads}))
+                : pooled;
         const double factor = gauge[i] / reference;
         json row{{"path", runs[i].path}, {"gauge_cpu_s_per_sample", gauge[i]}, {"factor", factor}};
         if (mode == SpeedGauge::interval || mode == SpeedGauge::interval_mean) {
@@ -1163,7 +1177,8 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode) {
            {"mode", mode == SpeedGauge::interval        ? "interval"
                     : mode == SpeedGauge::interval_mean ? "interval-mean"
                                                         : "run"},
-           {"reference_cpu_s_per_sample", reference},
+           {"reference_cpu_s_per_sample", pooled},
+           {"reference", rule == GaugeReference::grid ? "grid" : "pooled"},
            {"method", mode != SpeedGauge::run
                           ? "each interval's speed-gauge CPU seconds per sample, pooled over +-" +
                                 std::to_string(speed_gauge_half_window) + " interval(s) as the " +
@@ -1178,14 +1193,30 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode) {
                             "speed"},
            {"log_sd", logs.size() > 1 ? std::sqrt(ss / static_cast<double>(logs.size() - 1)) : 0.0},
            {"runs", list}};
+    if (rule == GaugeReference::grid) {
+        out["references"] = references;
+        out["method"] = out["method"].get<std::string>() +
+                        "; the median is of the run's grid and thread count (the gauge's reading "
+                        "depends on what runs around it: model/NOTES.md, session 58)";
+    }
     return out;
+}
+
+json gauge_reference_for(const json &speed_gauge, const std::string &grid, int threads) {
+    if (!speed_gauge.is_object() || !speed_gauge.value("applied", false))
+        return nullptr;
+    if (speed_gauge.contains("references"))
+        for (const auto &r : speed_gauge.at("references"))
+            if (r.at("grid").get<std::string>() == grid && r.at("threads").get<int>() == threads)
+                return r.at("reference_cpu_s_per_sample");
+    return speed_gauge.at("reference_cpu_s_per_sample");
 }
 
 json calibrate(const json &header, const json &machine, const std::vector<SphRun> &measured,
                const CalibrateOptions &opt) {
     // Every time below at the gauge's reference speed where the runs carry it.
     std::vector<SphRun> runs = measured;
-    const json speed_gauge = speed_normalise(runs, opt.speed_gauge);
+    const json speed_gauge = speed_normalise(runs, opt.speed_gauge, opt.gauge_reference);
     if (runs.empty())
         throw UsageError("calibrate needs at least one SPH report (--runs)");
     const std::string host = machine.value("host", "");

@@ -836,9 +836,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  // The host speed the prediction is at (calibrate's speed gauge; null: the
                  // calibration runs as measured).
                  {"speed_gauge_reference_cpu_s",
-                  model.contains("speed_gauge") && model["speed_gauge"].value("applied", false)
-                      ? model["speed_gauge"]["reference_cpu_s_per_sample"]
-                      : json(nullptr)},
+                  gauge_reference_for(model.value("speed_gauge", json(nullptr)), req.grid,
+                                      req.threads)},
                  {"wall_band", wall_band(model, req.threads, wall)},
                  {"totals",
                   {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},

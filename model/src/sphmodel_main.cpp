@@ -23,6 +23,7 @@ struct Options {
     std::string fit_weights = "relative";
     std::string run_level = "pooled";
     std::string speed_gauge = "interval";
+    std::string gauge_reference = "pooled";
     bool walls_term = false;
     PredictRequest predict;
     std::string balance_weights = "count";
@@ -84,6 +85,12 @@ int run(int argc, char **argv) {
                     "factor per run, session 50) or off (the runs as measured, sessions 1-49)")
         ->capture_default_str()
         ->check(cli::IsMember({"interval", "interval-mean", "run", "off"}));
+    cal->add_option("--speed-gauge-reference", o.gauge_reference,
+                    "pooled (every run at all the runs' median gauge, sessions 50-58) or grid "
+                    "(each grid and thread count's runs at their own median: the gauge reads "
+                    "differently with what runs around it, model/NOTES.md session 58)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"grid", "pooled"}));
     cal->add_flag("--walls-term", o.walls_term,
                   "Also offer the compute-cost term walls (every wall particle of a rank), as "
                   "sessions 1-50 did (a rank's dry walls cost nothing measurable: model/NOTES.md, "
@@ -190,23 +197,24 @@ int run(int argc, char **argv) {
         std::vector<SphRun> runs;
         for (const auto &r : o.runs)
             runs.push_back(load_sph_run(r));
-        const auto model =
-            calibrate(report_header("sphmodel-calibration", topo), machine, runs,
-                      {o.allow_other_host,
-                       o.term_selection == "pooled-one-percent" ? TermSelection::pooled_one_percent
-                                                                : TermSelection::levelled_one_se,
-                       o.time_profile == "none"              ? TimeProfile::none
-                       : o.time_profile == "froude-windowed" ? TimeProfile::froude_windowed
-                                                             : TimeProfile::froude,
-                       o.fit_weights == "relative" ? FitWeights::relative : FitWeights::absolute,
-                       o.run_level == "fastest-repeat" ? RunLevelRule::fastest_repeat
-                       : o.run_level == "median"       ? RunLevelRule::median
-                                                       : RunLevelRule::pooled,
-                       o.speed_gauge == "interval"        ? SpeedGauge::interval
-                       : o.speed_gauge == "interval-mean" ? SpeedGauge::interval_mean
-                       : o.speed_gauge == "run"           ? SpeedGauge::run
-                                                          : SpeedGauge::off,
-                       o.walls_term});
+        const auto model = calibrate(
+            report_header("sphmodel-calibration", topo), machine, runs,
+            {o.allow_other_host,
+             o.term_selection == "pooled-one-percent" ? TermSelection::pooled_one_percent
+                                                      : TermSelection::levelled_one_se,
+             o.time_profile == "none"              ? TimeProfile::none
+             : o.time_profile == "froude-windowed" ? TimeProfile::froude_windowed
+                                                   : TimeProfile::froude,
+             o.fit_weights == "relative" ? FitWeights::relative : FitWeights::absolute,
+             o.run_level == "fastest-repeat" ? RunLevelRule::fastest_repeat
+             : o.run_level == "median"       ? RunLevelRule::median
+                                             : RunLevelRule::pooled,
+             o.speed_gauge == "interval"        ? SpeedGauge::interval
+             : o.speed_gauge == "interval-mean" ? SpeedGauge::interval_mean
+             : o.speed_gauge == "run"           ? SpeedGauge::run
+                                                : SpeedGauge::off,
+             o.gauge_reference == "pooled" ? GaugeReference::pooled : GaugeReference::grid,
+             o.walls_term});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -1290,6 +1290,41 @@ TEST(Calibrate, SpeedGaugePutsTheRunsAtOneHostSpeed) {
     EXPECT_DOUBLE_EQ(off[1].wall_s, 3.0);
 }
 
+// --speed-gauge-reference grid: each grid and thread count's runs at their own median gauge.
+// Two table runs whose gauge reads 1.2 and two sorted runs whose gauge reads 1.0 (the same host
+// speed, the gauge biased by what runs around it) keep their times; pooled scales each pair by
+// its gauge over the median of all four. A prediction reads its own group's reference.
+TEST(Calibrate, GridGaugeReferenceNormalisesEachGridByItsOwnRuns) {
+    auto run = [](const std::string &grid, int threads, double gauge) {
+        SphRun r = measured_run(2.0);
+        r.config.grid = grid;
+        r.config.threads = threads;
+        auto &rk = r.intervals[0].ranks[0];
+        rk.gauge_cpu_s = 20 * 40e-6 * gauge;
+        rk.gauge_samples = 20;
+        return r;
+    };
+    const std::vector<SphRun> base{run("table", 1, 1.2), run("table", 1, 1.2),
+                                   run("sorted", 1, 1.0), run("sorted", 1, 1.0)};
+    auto grid = base;
+    const auto g = speed_normalise(grid, SpeedGauge::run, GaugeReference::grid);
+    ASSERT_TRUE(g["applied"].get<bool>());
+    EXPECT_EQ(g["reference"], "grid");
+    for (const auto &r : grid)
+        EXPECT_NEAR(r.wall_s, 2.0, 1e-12);
+    EXPECT_NEAR(gauge_reference_for(g, "table", 1).get<double>(), 48e-6, 1e-15);
+    EXPECT_NEAR(gauge_reference_for(g, "sorted", 1).get<double>(), 40e-6, 1e-15);
+    // No group of its own (another thread count): the pooled median.
+    EXPECT_NEAR(gauge_reference_for(g, "sorted", 2).get<double>(), 44e-6, 1e-15);
+    auto pooled = base;
+    const auto p = speed_normalise(pooled, SpeedGauge::run, GaugeReference::pooled);
+    EXPECT_FALSE(p.contains("references"));
+    EXPECT_NEAR(pooled[0].wall_s, 2.0 * 44.0 / 48.0, 1e-12);
+    EXPECT_NEAR(pooled[2].wall_s, 2.0 * 44.0 / 40.0, 1e-12);
+    EXPECT_NEAR(gauge_reference_for(p, "table", 1).get<double>(), 44e-6, 1e-15);
+    EXPECT_TRUE(gauge_reference_for(nlohmann::json{{"applied", false}}, "table", 1).is_null());
+}
+
 // With --speed-gauge interval a host that slows down within a run is taken out interval by
 // interval: a run of six intervals whose last three ran 1.5 times slower (their times and
 // their gauge) comes out flat at the reference speed, where one factor per run leaves the

@@ -95,6 +95,13 @@ enum class SpeedGauge { interval, interval_mean, run, off };
 // the shape of the cost over the run differed by 11.1 % (sd of ln, level removed) with one
 // factor per run, 9.5 / 7.8 / 7.9 / 8.3 % with windows of 0 / 1 / 2 / 4 intervals.
 constexpr int speed_gauge_half_window = 1;
+// Which runs' median gauge is the reference speed. pooled: every run's median (sessions 50-58,
+// the default); grid: each grid and thread count's own runs' median, so a grid's model is at its
+// own runs' median speed. On the 512-bit build (session 58) the gauge read 3-9 % slower in
+// Cell+Table runs than in Cell+Sorted runs made in alternation, so pooled puts Cell+Sorted's
+// runs a few per cent above their own speed; but replayed on session 57's and earlier stored
+// jobs (256-bit) grid raised the max in 7 of 8 quiet ones (model/NOTES.md, session 58).
+enum class GaugeReference { grid, pooled };
 struct CalibrateOptions {
     bool allow_other_host = false;
     TermSelection term_selection = TermSelection::levelled_one_se;
@@ -103,6 +110,7 @@ struct CalibrateOptions {
     RunLevelRule run_level = RunLevelRule::pooled;
     // Put every calibration run at one host speed by its speed gauge (speed_normalise).
     SpeedGauge speed_gauge = SpeedGauge::interval;
+    GaugeReference gauge_reference = GaugeReference::pooled;
     // Offer the cost term `walls` (every wall particle of a rank) to the term selection, as
     // sessions 1-50 did; session 51 measured that a rank's dry walls cost nothing (calibrate.cpp).
     bool walls_term = false;
@@ -115,8 +123,17 @@ struct CalibrateOptions {
 // not bend the cost's shape over the flow. Applied unless `mode` is off, when every run carries
 // gauge samples; returns {"applied", "mode", "reason" or "reference_cpu_s_per_sample", "runs":
 // [{path, gauge_cpu_s_per_sample, factor (the run's, compute-weighted), interval_factors (with
-// interval)}], "log_sd" (standard deviation of ln factor over the runs)}.
-nlohmann::json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode);
+// interval)}], "log_sd" (standard deviation of ln factor over the runs)}. With
+// GaugeReference::grid each run's factor is over the median of its grid and thread count's runs
+// ("references": [{grid, threads, reference_cpu_s_per_sample, runs}]); the pooled median stays
+// in "reference_cpu_s_per_sample".
+nlohmann::json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode,
+                               GaugeReference reference = GaugeReference::pooled);
+// The gauge reference a prediction of `grid` at `threads` threads is at (model.json's
+// speed_gauge): its group's where calibrate kept one per grid, else the pooled one; null when
+// the gauge was not applied.
+nlohmann::json gauge_reference_for(const nlohmann::json &speed_gauge, const std::string &grid,
+                                   int threads);
 nlohmann::json calibrate(const nlohmann::json &header, const nlohmann::json &machine,
                          const std::vector<SphRun> &runs, const CalibrateOptions &opt);
 // The Froude-time profile of one compute entry (a fit of one grid and thread count, with its
