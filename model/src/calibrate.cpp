@@ -1137,18 +1137,21 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
     std::map<std::pair<std::string, int>, std::vector<double>> groups;
     for (std::size_t i = 0; i < runs.size(); ++i)
         groups[{runs[i].config.grid, runs[i].config.threads}].push_back(gauge[i]);
+    std::map<std::pair<std::string, int>, double> group_reference;
     json references = json::array();
-    for (const auto &[key, g] : groups)
+    for (const auto &[key, g] : groups) {
+        group_reference[key] = median(g);
         references.push_back({{"grid", key.first},
                               {"threads", key.second},
-                              {"reference_cpu_s_per_sample", median(g)},
+                              {"reference_cpu_s_per_sample", group_reference[key]},
                               {"runs", g.size()}});
+    }
     json list = json::array();
     std::vector<double> logs;
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const double reference =
             rule == GaugeReference::grid
-                ? median(groups.at({runs[i].config.grid, runs[i].config.threads}))
+                ? group_reference.at({runs[i].config.grid, runs[i].config.threads})
                 : pooled;
         const double factor = gauge[i] / reference;
         json row{{"path", runs[i].path}, {"gauge_cpu_s_per_sample", gauge[i]}, {"factor", factor}};
