@@ -138,12 +138,14 @@ more_runs=1
 # breaks on Cell+List and Cell+Table ran at half scale for 1500 steps until session 16 (20 of
 # the 40 s of two rounds), at scale 0.35 for 920 steps in sessions 16-54 (1.2 s each against
 # 4.5 s: re-run on session 16's stored runs, wall median 3.0 -> 2.8 %, every list and table dam
-# break within 5.6 %; model/NOTES.md, session 16), and at half scale again since session 55,
-# for 1100 steps (about 3 s each: below). Cell+Sorted's half-scale dam break
-# stays: it is cheap and covers the whole validation flow (1500 steps of 0.1 ms at every scale:
-# 0.21 in Froude time, the validation's 0.15); reaching furthest in Froude time of the model's
-# runs, it is also the workload trace (the 2-thread dam breaks at 0.35 run 920 steps so as not
-# to reach past it).
+# break within 5.6 %; model/NOTES.md, session 16), at half scale again since session 55, for
+# 1100 steps (about 3 s each: below), and for 1500 steps since session 59 (about 5 s: the
+# validation's simulated time, for the memory order; model-set.sh). Cell+Sorted's half-scale
+# dam break stays: it is cheap and covers the whole validation flow (1500 steps of 0.1 ms at
+# every scale: 0.21 in Froude time, the validation's 0.15). The workload trace is the model's
+# run reaching furthest in Froude time, the first listed of equals: since session 59 Cell+List's
+# half-scale dam break of round a (Cell+Sorted's before; the same physics, the same columns to
+# rounding). The 2-thread dam breaks at 0.35 run 920 steps so as not to reach past them.
 calibrate_round() { # calibrate_round LABEL
     local t0=$SECONDS grid
     for grid in table list; do
@@ -160,16 +162,10 @@ calibrate_round() { # calibrate_round LABEL
         # results/reference/vm/memory_order_sweep.json; model/NOTES.md, session 55), so a profile
         # measured at 0.35 put the scale-1 table dam breaks on 1 and 2 ranks 5-10 % low in every
         # quiet job of session 54. At 0.7 it would see all of scale 1's rise (a lead, NOTES).
+        # Sessions 55-58 also ran the 0.35 run it replaced, for a comparison model
+        # (long-dambreak-s035/); dropped in session 59 to pay for the longer record.
         sph 2 "cal_dambreak_s0.5_${grid}_$1" --setup dambreak --scale 0.5 \
             --grid "$grid" --steps "$c5_steps" --interval "$c_interval"
-        # The 0.35 run it replaced, for the comparison model only (long-dambreak-s035/): its
-        # time is the comparison's, not the calibration's.
-        if [ "$more_runs" -eq 1 ]; then
-            local c0=$SECONDS
-            sph 2 "cmp_dambreak_s0.35_${grid}_$1" --setup dambreak --scale 0.35 \
-                --grid "$grid" --steps "$c35_steps" --interval "$c_interval"
-            cmp_s=$((cmp_s + SECONDS - c0))
-        fi
         # A second, larger scale over the flow's start (0.035 in Froude time): at 0.35 a
         # particle has 33 interactions, at 1-2 it has 40, so the per-interaction cost at 0.35
         # alone carried its surface's per-particle share up to scale 2 (+9 to +21 % in 4 of 5
@@ -200,14 +196,12 @@ calibrate_round() { # calibrate_round LABEL
     # 52), a quarter of a scale-0.35 step and 4 % of a scale-1 one, and with the dam break at
     # one scale cross-validation cannot tell it from the cost of an interaction, which put the
     # 1 x 2 dam break at scale 1 high (+12.8 % mean over the 13 stored jobs on this host).
-    # As long as the list and table dam breaks at 0.35 (0.155 in Froude time, past the
-    # validation's 0.15): at 1500 steps it would reach past the half-scale dam break and become
-    # the workload trace, a coarser one.
+    # 920 steps (0.155 in Froude time, past the validation's 0.15): at 1500 steps it would
+    # reach past the half-scale dam breaks and become the workload trace, a coarser one.
     sph 1x2 "cal_dambreak_s0.35_sorted_t2_$1" --setup dambreak --scale 0.35 --grid sorted \
         --steps "$c35_steps" --interval "$c_interval"
     sorted_runs "$1"
-    cal_s=$((cal_s + SECONDS - t0 - cmp_s))
-    cmp_s=0
+    cal_s=$((cal_s + SECONDS - t0))
 }
 # sorted_runs LABEL: Cell+Sorted's short calibration runs, in every round (a, b and c).
 sorted_runs() {
@@ -249,7 +243,6 @@ sorted_runs() {
         --steps "$cs_steps" --interval "$c_interval"
 }
 cal_s=0
-cmp_s=0 # a calibration round's comparison-only runs
 val_s=0
 # validate_run [--rep K] [--twin] RANKS[xTHREADS] NAME ARGS...: one validation run, as NAME, or
 # as the K-th of the short configurations' spread runs ($repeats/NAME.repK; keep_median picks
@@ -415,10 +408,6 @@ if [ "$more_runs" -eq 1 ]; then
     # Sessions 44-45's calibration: the long list and table dam breaks in round a only.
     mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.5_(list|table)_b\.json$')
     beside model_and_validate "$out/long-dambreak-round-a" levelled-one-se froude
-    # Sessions 46-54's calibration: the long list and table dam breaks at 0.35, not 0.5.
-    mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.5_(list|table)_';
-        ls "$runs"/cmp_dambreak_s0.35_*.json)
-    beside model_and_validate "$out/long-dambreak-s035" levelled-one-se froude
     mapfile -t cal_reports < <(model_runs)
 fi
 # Without the list and table dam breaks at scale 0.25 (sessions 46-53's calibration: two scales).
@@ -461,6 +450,10 @@ beside model_and_validate "$out/time-shared-replay-4ms" levelled-one-se froude r
 # columns' (session 56: the disorder sits where the water moves, model/NOTES.md).
 beside model_and_validate "$out/one-order-per-run" levelled-one-se froude relative replay \
     "--rank-disorder none"
+# Each equal slab's Cell+Table memory order carried with its columns at the target's Froude time
+# (sessions 56-58) instead of to the whole water's at its simulated time (session 59).
+beside model_and_validate "$out/froude-order" levelled-one-se froude relative replay \
+    "--memory-order-time froude"
 beside model_and_validate "$out/no-profile" levelled-one-se none absolute
 beside model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute
 for pid in "${beside_pids[@]}"; do wait "$pid"; done # a failed comparison fails the job

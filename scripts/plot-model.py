@@ -619,21 +619,26 @@ def markdown(model, validation, args, out):
              "round b 0.80-0.86) put every list and table dam break 33-51 % high: past 0.036 s of "
              "Froude time they are the only list or table runs: **tuned**. With round a's alone "
              "on the same validation runs: {o} (long-dambreak-round-a/validation.json)."),
-            (any("_s0.5_list_" in r["path"] or "_s0.5_table_" in r["path"]
-                 for r in model["calibration_runs"]),
-             "long-dambreak-s035",
-             "Cell+List's and Cell+Table's long dam breaks at scale 0.5 (1100 steps), since "
-             "session 55, 0.35 (920 steps) before: the cost of an interaction rises over a dam "
-             "break as the particles lose their memory order, and by how much depends on the "
-             "run's size (Cell+Table's search and id sort per interaction rose by 12.2 ns over "
-             "0.013-0.152 s of Froude time at 0.35, 13.7 ns at 0.5, 16.6 and 17.4 ns at 0.7 and 1: "
-             "scripts/scale-sweep.py --froude-time, results/reference/vm/memory_order_sweep.json), "
-             "so a profile read at 0.35 put the scale-1 table dam breaks on 1 and 2 ranks 5-10 % "
-             "low in every quiet job of session 54. Chosen after two main jobs of session 55 "
-             "that ran both (median / max 3.4 / 9.7 and 2.6 / 9.5 % with 0.35, 3.7 / 7.8 and "
-             "2.8 / 6.3 % with 0.5): **tuned**. About 2 s more per run, 8 s of calibration. "
-             "With the 0.35 runs (sessions 46-54's calibration, run for this comparison only) on "
-             "the same validation runs: {o} (long-dambreak-s035/validation.json)."),
+            ("by_column" in (model.get("disorder") or {}).get("dambreak", {}).get("table", {}),
+             "froude-order",
+             "Each equal slab's Cell+Table memory order carried to the whole water's at the "
+             "target's simulated time (predict --memory-order-time simulated), since session 59: "
+             "the columns follow the flow (Froude time), but the descents per interaction follow "
+             "simulated time (the particles' jitter), and a scale-1 dam break, which at equal "
+             "Froude time has run 1.41 times as long as the half-scale record, reads 0.31 descents "
+             "per interaction at 0.15 s where the record carried 0.23 (validate's memory-order "
+             "term on equal slabs: -26 % median at Froude time). Cell+Table's id sort works by its "
+             "descents: over 19 stored jobs its scale-1 cost per interaction over the half-scale "
+             "record's at equal Froude time rose from 0.91 to 1.08 through the run, Cell+List's "
+             "from 0.92 to 0.95. Not Cell+List (its lists come out reversed whatever the order), "
+             "not balanced slabs (their re-cuts refile the particles, which keep their order). The "
+             "list and table dam breaks at 0.5 run 1500 steps for it (1100 in sessions 55-58; the "
+             "0.35 runs of the comparison long-dambreak-s035/ were dropped to pay for them). "
+             "Decided after replaying 22 stored jobs with their record extended linearly (the "
+             "scale-1 table dam breaks on 1-3 ranks -4.5 / -5.9 / -4.0 % on average, +1.6 / +0.1 / "
+             "+1.2 % with it; both targets met in 14 of the 22 jobs against 12): **tuned**. With "
+             "the order at Froude time (sessions 56-58) on the same runs: {o} "
+             "(froude-order/validation.json)."),
             (any("_s0.35_sorted_t2_" in r["path"] for r in model["calibration_runs"]),
              "two-thread-one-scale",
              "Cell+Sorted at 2 threads calibrated on its dam break at two scales (0.35 and 0.7) and "

@@ -35,6 +35,9 @@ struct Costs {
     // List and table: the memory order per column, so each rank's compute per interaction
     // follows its own columns' (predict --rank-disorder columns).
     std::optional<ColumnDisorder> column_disorder;
+    // Cell+Table with the Froude-time profile: the whole water's memory order over simulated
+    // time, to which each equal slab's is carried (predict --memory-order-time simulated).
+    std::optional<Disorder> order_level;
     double delta = 0.01; // target spacing (acoustic time of the disorder record)
     // Measured / fitted compute of this setup by Froude time (calibrate --time-profile froude);
     // empty: none. The target's scale turns its time into Froude time.
@@ -145,6 +148,16 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             if (const std::string why = c.column_disorder->unusable(); !why.empty())
                 throw UsageError("model disorder " + setup + "/" + grid + "/by_column: " + why +
                                  " (calibrate keeps such a line under by_column_unused)");
+            // Cell+Table's own descents count its id sort's work, and they follow simulated
+            // time; Cell+List's line reads Cell+Table's descents, but its lists come out
+            // reversed whatever the order (0.86 descents per interaction), and its cost
+            // follows the flow (Froude time): scale-1 runs over the half-scale record at equal
+            // Froude time, median over 19 stored jobs, id sort 0.91 -> 1.08 for Cell+Table,
+            // 0.92 -> 0.95 for Cell+List (model/NOTES.md, session 59). Not with a descents
+            // term: it reads the order at simulated time already.
+            if (c.column_disorder->order_source.empty() && !needs_disorder)
+                c.order_level = Disorder::from_json(model.at("disorder").at(setup).at(grid),
+                                                    "model disorder " + setup + "/" + grid);
         }
         c.comm = CommModel::from_profile(model.at("machine"));
         c.exchange = ExchangeModel::from_profile(model.at("machine"));
@@ -555,6 +568,20 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         throw UsageError("--rank-disorder '" + req.rank_disorder + "': expected columns or none");
     if (req.rank_disorder == "none")
         c.column_disorder.reset();
+    if (req.memory_order_time != "simulated" && req.memory_order_time != "froude")
+        throw UsageError("--memory-order-time '" + req.memory_order_time +
+                         "': expected simulated or froude");
+    // Only with the Froude-time profile: its cost was measured at the whole water's order at
+    // that Froude time (SlabOrder::all), from which each slab is carried.
+    if (req.memory_order_time == "froude" || !c.column_disorder || c.profile.empty())
+        c.order_level.reset();
+    if (c.order_level)
+        try {
+            (void)c.order_level->at(static_cast<double>(steps) * req.dt, req.delta);
+        } catch (const UsageError &e) {
+            throw UsageError(std::string(e.what()) +
+                             ", or predict with --memory-order-time froude");
+        }
     if (c.column_disorder)
         (void)c.column_disorder->rank_factors(static_cast<double>(steps) * req.dt, req.scale,
                                               probe.cell_size, probe.tank_length, probe.columns,
@@ -592,7 +619,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"trace_delta", trace.delta},
                            {"jitter_k_sqrt_s", c.jitter_k_sqrt_s},
                            {"compute_time_profile", c.profile.empty() ? "none" : "froude"},
-                           {"rank_disorder", c.column_disorder ? "columns" : "none"}};
+                           {"rank_disorder", c.column_disorder ? "columns" : "none"},
+                           {"memory_order_time", c.order_level ? "simulated" : "froude"}};
     if (c.column_disorder)
         out["model_source"]["rank_disorder_source"] = c.column_disorder->source;
     out["fluid_particles"] = probe.fluid_particles;
@@ -691,6 +719,13 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                     if (c.column_disorder)
                         slabs = c.column_disorder->slab_order(t, req.scale, tgt.cell_size,
                                                               tgt.tank_length, tgt.columns, cuts);
+                    // Equal slabs only: a balanced run's re-cuts refile its particles, and it
+                    // keeps its order (0.12 descents per interaction at 0.15 s against 0.31),
+                    // which the Froude-time record matches better (validate's memory-order
+                    // term: median +0.5 %).
+                    if (slabs && c.order_level && !balanced)
+                        slabs =
+                            ColumnDisorder::at_whole_order(*slabs, c.order_level->at(t, c.delta));
                     const std::vector<double> order =
                         slabs ? c.column_disorder->factors(*slabs) : std::vector<double>{};
                     const auto ranks =

@@ -175,6 +175,13 @@ int run(int argc, char **argv) {
                     "before session 56)")
         ->capture_default_str()
         ->check(cli::IsMember({"columns", "none"}));
+    pre->add_option("--memory-order-time", q.memory_order_time,
+                    "Table: each equal slab's memory order carried to the whole water's at the "
+                    "target's simulated time (simulated: the descents follow the particles' "
+                    "jitter, model/NOTES.md session 59), or with its columns at the target's "
+                    "Froude time (froude: the model of sessions 56-58)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"simulated", "froude"}));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

@@ -391,6 +391,16 @@ ColumnDisorder::SlabOrder ColumnDisorder::slab_order(double target_time_s, doubl
     return out;
 }
 
+ColumnDisorder::SlabOrder ColumnDisorder::at_whole_order(SlabOrder order, double whole) {
+    if (!(order.all > 0))
+        return order;
+    const double ratio = whole / order.all;
+    for (auto &d : order.slabs)
+        if (d)
+            *d *= ratio;
+    return order;
+}
+
 std::vector<double> ColumnDisorder::factors(const SlabOrder &order) const {
     const double base = intercept_s + slope_s * order.all;
     std::vector<double> out;

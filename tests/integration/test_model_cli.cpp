@@ -686,7 +686,11 @@ TEST(ModelCli, CostAwareCutsUseTheModelsWeights) {
 // Each list or table rank's compute follows the memory order of its own columns: a planted
 // per-column record (better ordered at the back of the water than at its front) and cost line
 // give the front rank the larger compute per interaction, the back one the smaller;
-// --rank-disorder none gives every rank the whole run's; an unusable line is refused.
+// --rank-disorder none gives every rank the whole run's; an unusable line is refused. With
+// --memory-order-time simulated (the default) Cell+Table's slabs are carried to the whole
+// water's order at the target's simulated time (the model's disorder record): a record that
+// reads the planted columns' order leaves the factors as at Froude time, one twice as
+// disordered raises every rank's, and a record shorter than the prediction is refused.
 TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
     const auto &f = fixture();
     auto model = load(f.model);
@@ -694,6 +698,7 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
     ASSERT_TRUE(model.contains(nlohmann::json::json_pointer("/disorder/dambreak/table")));
     nlohmann::json times = nlohmann::json::array(), inter = nlohmann::json::array(),
                    desc = nlohmann::json::array();
+    std::vector<double> whole; // the planted columns' descents per interaction, all of them
     for (const auto &iv : run1["intervals"]) {
         times.push_back(iv["time_s"]);
         std::vector<double> i, d;
@@ -702,6 +707,8 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
             i.push_back(40 * cols[c].get<double>());
             d.push_back(i.back() * (0.05 + 0.02 * static_cast<double>(c)));
         }
+        whole.push_back(std::accumulate(d.begin(), d.end(), 0.0) /
+                        std::accumulate(i.begin(), i.end(), 0.0));
         inter.push_back(i);
         desc.push_back(d);
     }
@@ -717,8 +724,20 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
                            {{"intercept_s", 30e-9},
                             {"slope_s_per_descent_per_interaction", 50e-9},
                             {"slope_se_s_per_descent_per_interaction", 5e-9}}}};
-    const auto planted = f.dir / "model_by_column.json";
-    std::ofstream(planted) << model.dump();
+    // The whole water's record over simulated time, `times_factor` times the columns' order.
+    auto with_record = [&](double times_factor, std::size_t records, const std::string &name) {
+        auto m = model;
+        auto &e = m["disorder"]["dambreak"]["table"];
+        e["times_s"] = std::vector<double>(times.begin(), times.begin() + records);
+        std::vector<double> d;
+        for (std::size_t k = 0; k < records; ++k)
+            d.push_back(times_factor * whole[k]);
+        e["descents_per_interaction"] = d;
+        const auto path = f.dir / ("model_by_column_" + name + ".json");
+        std::ofstream(path) << m.dump();
+        return path;
+    };
+    const auto planted = with_record(1.0, times.size(), "planted");
     auto predict = [&](const fs::path &m, const std::string &extra, const std::string &name) {
         const auto out = f.dir / ("pred_order_" + name + ".json");
         return std::pair{run(bin("sphmodel") + " predict --model " + m.string() +
@@ -734,10 +753,12 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
                 out.push_back(r["memory_order_factor"].get<double>());
         return out;
     };
-    const auto [by_col, col_out] = predict(planted, "", "columns");
+    const std::string froude = " --memory-order-time froude";
+    const auto [by_col, col_out] = predict(planted, froude, "columns");
     ASSERT_EQ(by_col.code, 0) << by_col.err;
     const auto pc = load(col_out);
     EXPECT_EQ(pc["model_source"]["rank_disorder"], "columns");
+    EXPECT_EQ(pc["model_source"]["memory_order_time"], "froude");
     const auto fc = factors(pc);
     ASSERT_GE(fc.size(), 2u) << "the water spans one slab";
     EXPECT_LT(fc.front(), 1.0);
@@ -752,6 +773,31 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
     // The front rank computes longer with its own columns' order, the back one shorter.
     const auto &rc = pc["configurations"][0]["per_rank"], &rn = pn["configurations"][0]["per_rank"];
     EXPECT_LT(rc[0]["compute_s"].get<double>(), rn[0]["compute_s"].get<double>());
+    // At simulated time: a record that reads the columns' own order changes nothing beyond the
+    // interpolation between records; one twice as disordered raises every rank's factor.
+    const auto [same, same_out] = predict(planted, "", "simulated_same");
+    ASSERT_EQ(same.code, 0) << same.err;
+    const auto ps = load(same_out);
+    EXPECT_EQ(ps["model_source"]["memory_order_time"], "simulated");
+    const auto fs_same = factors(ps);
+    ASSERT_EQ(fs_same.size(), fc.size());
+    for (std::size_t r = 0; r < fc.size(); ++r)
+        EXPECT_NEAR(fs_same[r], fc[r], 0.01 * fc[r]) << r;
+    const auto [twice, twice_out] =
+        predict(with_record(2.0, times.size(), "twice"), "", "simulated_twice");
+    ASSERT_EQ(twice.code, 0) << twice.err;
+    const auto ft = factors(load(twice_out));
+    ASSERT_EQ(ft.size(), fc.size());
+    for (std::size_t r = 0; r < fc.size(); ++r)
+        EXPECT_GT(ft[r], fc[r] * 1.05) << r;
+    // A record that ends before the prediction: refused, naming the time and the way out.
+    const auto short_record = with_record(1.0, times.size() / 2, "short");
+    const auto [cut, cut_out] = predict(short_record, "", "short");
+    EXPECT_EQ(cut.code, 2);
+    EXPECT_NE(cut.err.find("this prediction needs"), std::string::npos) << cut.err;
+    EXPECT_NE(cut.err.find("--memory-order-time froude"), std::string::npos) << cut.err;
+    EXPECT_FALSE(fs::exists(cut_out));
+    EXPECT_EQ(predict(short_record, froude, "short_froude").first.code, 0);
     entry["by_column"]["cost_per_interaction"]["intercept_s"] = -1e-9;
     const auto bad = f.dir / "model_by_column_bad.json";
     std::ofstream(bad) << model.dump();
@@ -762,6 +808,11 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
     const auto [wrong, wrong_out] = predict(planted, " --rank-disorder sometimes", "wrong");
     EXPECT_EQ(wrong.code, 2);
     EXPECT_NE(wrong.err.find("sometimes"), std::string::npos) << wrong.err;
+    const auto [wrong_time, wrong_time_out] =
+        predict(planted, " --memory-order-time sometimes", "wrong_time");
+    EXPECT_EQ(wrong_time.code, 2);
+    EXPECT_NE(wrong_time.err.find("sometimes"), std::string::npos) << wrong_time.err;
+    EXPECT_FALSE(fs::exists(wrong_time_out));
 }
 
 TEST(ModelCli, RanksOverNodesPayTheInterNodeClass) {

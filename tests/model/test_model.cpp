@@ -556,6 +556,35 @@ TEST(Workload, ColumnDisorderRecoversTheCostLineAndGivesEachSlabItsColumns) {
     EXPECT_THROW(ColumnDisorder::from_json(j, "test"), UsageError);
 }
 
+// Carried to the whole water's order at the target's simulated time, every slab's descents per
+// interaction scale by the same ratio, a slab without interactions stays without, and the
+// Froude-time order of the whole (the base of factors()) stays: 1 rank's factor is then
+// (a + b whole) / (a + b all).
+TEST(Workload, SlabsCarriedToTheWholeWatersOrderKeepTheirRatios) {
+    ColumnDisorder::SlabOrder o;
+    o.slabs = {0.1, std::nullopt, 0.3};
+    o.all = 0.2;
+    const auto c = ColumnDisorder::at_whole_order(o, 0.3);
+    ASSERT_EQ(c.slabs.size(), 3u);
+    EXPECT_NEAR(*c.slabs[0], 0.15, 1e-15);
+    EXPECT_FALSE(c.slabs[1].has_value());
+    EXPECT_NEAR(*c.slabs[2], 0.45, 1e-15);
+    EXPECT_EQ(c.all, 0.2);
+    ColumnDisorder d;
+    d.intercept_s = 30e-9;
+    d.slope_s = 50e-9;
+    ColumnDisorder::SlabOrder one;
+    one.slabs = {0.2};
+    one.all = 0.2;
+    EXPECT_NEAR(d.factors(ColumnDisorder::at_whole_order(one, 0.3))[0],
+                (30e-9 + 50e-9 * 0.3) / (30e-9 + 50e-9 * 0.2), 1e-12);
+    // No order to scale (a water without descents): unchanged.
+    ColumnDisorder::SlabOrder none;
+    none.slabs = {0.0};
+    none.all = 0.0;
+    EXPECT_EQ(*ColumnDisorder::at_whole_order(none, 0.3).slabs[0], 0.0);
+}
+
 TEST(Workload, CellListReadsItsMemoryOrderOffCellTablesColumns) {
     // A Cell+Table run and a Cell+List run of one configuration (2 ranks, 4 columns, 8
     // records). The list's own descents stay at 0.86 per interaction; its rank's compute per

@@ -191,6 +191,10 @@ struct PredictRequest {
     // columns: each list or table rank's compute per interaction follows the memory order of
     // its own columns (ColumnDisorder, session 56); none: every rank the whole run's profile.
     std::string rank_disorder = "columns";
+    // simulated: each equal slab's Cell+Table memory order carried to the whole water's at the
+    // target's simulated time (ColumnDisorder::at_whole_order, session 59); froude: at its
+    // Froude time with the columns (sessions 56-58).
+    std::string memory_order_time = "simulated";
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);

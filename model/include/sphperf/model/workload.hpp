@@ -142,6 +142,14 @@ struct ColumnDisorder {
     // Every slab's compute per interaction over the whole water's: (a + b D_slab) /
     // (a + b D_all); 1 for a slab without interactions.
     std::vector<double> factors(const SlabOrder &order) const;
+    // `order` with every slab's descents per interaction scaled by whole / order.all: the
+    // columns follow the flow (Froude time), but the whole water's memory order follows
+    // simulated time (the particles' jitter on the acoustic time scale: at equal Froude time
+    // a scale-1 dam break has run 1.41 times as long as the half-scale record, and reads
+    // 0.31 descents per interaction at 0.15 s where the record carried 0.23; session 59).
+    // order.all stays: it is the order the Froude-time profile's cost was measured at, so
+    // factors() then carries each rank from it to its own order at the target's time.
+    static SlabOrder at_whole_order(SlabOrder order, double whole);
     std::vector<double> rank_factors(double target_time_s, double target_scale, double target_cell,
                                      double target_tank, int target_columns,
                                      const std::vector<int> &cuts) const;
