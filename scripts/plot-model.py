@@ -844,16 +844,25 @@ def markdown(model, validation, args, out):
                                         ("balanced slabs", "descents_per_interaction_per_busy_rank_interval_balanced"))
              if s.get(k)]
     if order:
+        simulated = any(
+            (json.load(open(p)).get("model_source") or {}).get("memory_order_time") == "simulated"
+            for p in glob.glob(os.path.join(args.dir, "prediction_*.json")))
+        carried = ("with its columns at the same Froude time, each equal slab's then carried to "
+                   "the whole water's order at the run's simulated time (predict "
+                   "--memory-order-time simulated, session 59)" if simulated else
+                   "from the calibration run at the same Froude time")
         lines.append("Memory order of each busy rank-interval (Cell+Table's descents per interaction of "
-                     "its columns, as the model carried them from the calibration run at the same "
-                     "Froude time, against the run's count; the term the per-rank cost reads): "
+                     f"its columns, as the model carried them {carried}, against the run's count; "
+                     "the term the per-rank cost reads): "
                      + "; ".join(f"{w}: error median {100 * x['median_error']:+.1f} %, |error| median "
                                  f"{100 * x['median_abs_error']:.1f} %, max {100 * x['max_abs_error']:.1f} % "
                                  f"over {x['count']}" for w, x in order)
                      + ". The order decays with simulated time, not Froude time (model/NOTES.md, "
-                     "session 57), so a scale-1 run reads more than its half-scale calibration "
-                     "carried, and a balanced run's front rank, whose particles its re-cuts "
-                     "refile (which no calibration run does), reads far less than carried.")
+                     "sessions 57 and 59)"
+                     + ("" if simulated else ", so a scale-1 run reads more than its half-scale "
+                        "calibration carried")
+                     + ", and a balanced run's front rank, whose particles its re-cuts refile "
+                     "(which no calibration run does), reads far less than carried.")
     lines.append("")
     lines.append(f"Roofline: {model['roofline']['verdict']}.")
     with open(out, "w") as f:
