@@ -153,7 +153,7 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             // reversed whatever the order (0.86 descents per interaction), and its cost
             // follows the flow (Froude time): scale-1 runs over the half-scale record at equal
             // Froude time, median over 19 stored jobs, id sort 0.91 -> 1.08 for Cell+Table,
-            // 0.92 -> 0.95 for Cell+List (model/NOTES.md, session 59). Not with a descents
+            // 0.87-0.95 for Cell+List (model/NOTES.md, session 59). Not with a descents
             // term: it reads the order at simulated time already.
             if (c.column_disorder->order_source.empty() && !needs_disorder)
                 c.order_level = Disorder::from_json(model.at("disorder").at(setup).at(grid),
@@ -620,7 +620,9 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                            {"jitter_k_sqrt_s", c.jitter_k_sqrt_s},
                            {"compute_time_profile", c.profile.empty() ? "none" : "froude"},
                            {"rank_disorder", c.column_disorder ? "columns" : "none"},
-                           {"memory_order_time", c.order_level ? "simulated" : "froude"}};
+                           {"memory_order_time", c.order_level       ? "simulated"
+                                                 : c.column_disorder ? "froude"
+                                                                     : "none"}};
     if (c.column_disorder)
         out["model_source"]["rank_disorder_source"] = c.column_disorder->source;
     out["fluid_particles"] = probe.fluid_particles;

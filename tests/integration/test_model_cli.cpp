@@ -768,6 +768,7 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
     ASSERT_EQ(none.code, 0) << none.err;
     const auto pn = load(none_out);
     EXPECT_EQ(pn["model_source"]["rank_disorder"], "none");
+    EXPECT_EQ(pn["model_source"]["memory_order_time"], "none"); // no order to carry
     for (double x : factors(pn))
         EXPECT_EQ(x, 1.0);
     // The front rank computes longer with its own columns' order, the back one shorter.
