@@ -248,8 +248,8 @@ struct PackedCandidates {
 // Appends to `out` the candidates at sorted positions [b, e) within distance^2 r2max of
 // (xi, yi) and not at it (distance 0: the particle itself, or a coincident image), and only
 // fluid ones with `fluid_only`; counts the in-range ones (distance 0 included) and their remote
-// share. `out`'s arrays must hold out.size + (e - b) + 8 entries. Vectorised with AVX-512 where
-// the build has it; pack_in_range_portable is the plain loop, the same result (tested).
+// share. `out`'s arrays must hold out.size + (e - b) + 8 entries. Vectorised with AVX-512 (or AVX2)
+// where the build has it; pack_in_range_portable is the plain loop, the same result (tested).
 void pack_in_range(const CellSorted::View &v, double xi, double yi, double r2max, bool fluid_only,
                    std::size_t b, std::size_t e, PackedCandidates &out);
 void pack_in_range_portable(const CellSorted::View &v, double xi, double yi, double r2max,
