@@ -139,10 +139,10 @@ more_runs=1
 # the 40 s of two rounds), at scale 0.35 for 920 steps in sessions 16-54 (1.2 s each against
 # 4.5 s: re-run on session 16's stored runs, wall median 3.0 -> 2.8 %, every list and table dam
 # break within 5.6 %; model/NOTES.md, session 16), at half scale again since session 55, for
-# 1100 steps (about 3 s each: below), for 1500 steps in session 59 and 1200 since session 60
+# 1100 steps (about 3 s each: below), for 1500 steps in session 59 and 1000 since session 60
 # (the validation's simulated time, for the memory order; model-set.sh). Cell+Sorted's
 # half-scale dam break stays: it is cheap and covers the whole validation flow (1500 steps of
-# 0.1 ms at every scale: 0.21 in Froude time, the validation's 0.12). The workload trace is the
+# 0.1 ms at every scale: 0.21 in Froude time, the validation's 0.1). The workload trace is the
 # model's run reaching furthest in Froude time, the first listed of equals: Cell+Sorted's
 # half-scale dam break of round a (Cell+List's in session 59, whose ran 1500 steps; the same
 # physics, the same columns to rounding). The 2-thread dam breaks at 0.35 run 920 steps so as
@@ -197,7 +197,7 @@ calibrate_round() { # calibrate_round LABEL
     # 52), a quarter of a scale-0.35 step and 4 % of a scale-1 one, and with the dam break at
     # one scale cross-validation cannot tell it from the cost of an interaction, which put the
     # 1 x 2 dam break at scale 1 high (+12.8 % mean over the 13 stored jobs on this host).
-    # 920 steps (0.155 in Froude time, past the validation's 0.12): at 1500 steps it would
+    # 920 steps (0.155 in Froude time, past the validation's 0.1): at 1500 steps it would
     # reach past the half-scale dam breaks and become the workload trace, a coarser one.
     sph 1x2 "cal_dambreak_s0.35_sorted_t2_$1" --setup dambreak --scale 0.35 --grid sorted \
         --steps "$c35_steps" --interval "$c_interval"

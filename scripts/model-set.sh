@@ -7,19 +7,19 @@
 # Validation steps per setup and scale, and calibration reach. A calibration run at scale s must
 # cover the validation's flow in Froude time (t_cal >= t_val sqrt(s / scale)); c_steps at half
 # scale, c35_steps at 0.35 (the 2-thread dam break: 0.089 s, 920 steps). The list and table
-# dam breaks at 0.5 (c5_steps) cover the validation's simulated time, 0.12 s (1200 steps of
-# 0.1 ms; 1500 in sessions 59, 0.106 s in sessions 55-58): Cell+Table's memory order follows
+# dam breaks at 0.5 (c5_steps) cover the validation's simulated time, 0.1 s (1000 steps of
+# 0.1 ms; 1500 in session 59, 0.106 s in sessions 55-58): Cell+Table's memory order follows
 # simulated time, and predict carries each slab's to the whole water's there
 # (--memory-order-time simulated, session 59). The models reported beside it for comparison may
 # select the memory-order term, which needs the same; a prediction they cannot make from these
-# runs is listed as such. The scale-1 dam breaks run 1200 steps since session 60 (1500 before):
-# on the Zen 3 host of session 60 the job took 10:47-11:33 with 1500, its list and table runs
-# about twice as long as on the Intel host before.
+# runs is listed as such. The scale-1 dam breaks run 1000 steps since session 60 (1500 before):
+# on the Zen 3 host of session 60 the job took 10:47-11:33 with 1500 and 9:00-9:56 with 1200,
+# its list and table runs about twice as long as on the Intel host before.
 if [ "$quick" -eq 1 ]; then
     v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c5_steps=130 c35_steps=130 c7_steps=60
     c25_steps=60 cs_steps=40 interval=20 c_interval=10
 else
-    v_steps=1200 v2_steps=500 vs_steps=300 c_steps=1500 c5_steps=1200 c35_steps=920 c7_steps=300
+    v_steps=1000 v2_steps=500 vs_steps=300 c_steps=1500 c5_steps=1000 c35_steps=920 c7_steps=300
     c25_steps=300 cs_steps=300 interval=100 c_interval=20
 fi
 # A replay of a stored job predicts its runs' own length (scripts/replay-job.sh sets it).

@@ -58,7 +58,7 @@ for re in "$exclude" "$include"; do
     grep -E -q -- "$re" <<<"" 2>/dev/null || rc=$?
     [ "$rc" -le 1 ] || die "'$re': not an extended regular expression"
 done
-# The scale-1 dam breaks' length as the job ran them (1500 steps until session 60, 1200 since).
+# The scale-1 dam breaks' length as the job ran them (1500 steps until session 59, 1000 since).
 probe="$runs/val_dambreak_s1_table_r1.json"
 if [ "$quick" -eq 0 ] && [ -f "$probe" ]; then
     REPLAY_V_STEPS=$(/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["config"]["steps"])' "$probe") ||
