@@ -565,7 +565,7 @@ void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, s
     // AVX2 has no compress: four candidates at a time, their kept lanes moved to the front by a
     // permutation looked up by the 4-bit mask and stored whole (the next store overwrites the
     // rest), the tail by masked loads. On a Zen 3 host the plain loop held about 40 % of the
-    // density pass's samples; this one runs the dam break 1.35x as fast (sph/NOTES.md,
+    // density pass's samples; this one runs the dam break 1.36x as fast (sph/NOTES.md,
     // session 60).
     const double *x = v.x, *y = v.y, *fluid = v.fluid, *far = v.remote;
     std::uint32_t *index = out.index.data();
