@@ -14,13 +14,14 @@
 # select the memory-order term, which needs the same; a prediction they cannot make from these
 # runs is listed as such. The scale-1 dam breaks run 1000 steps since session 60 (1500 before):
 # on the Zen 3 host of session 60 the job took 10:47-11:33 with 1500 and 9:00-9:56 with 1200,
-# its list and table runs about twice as long as on the Intel host before.
+# its list and table runs about twice as long as on the Intel host before. cs7_steps: Cell+Table's
+# still tank at 0.7 (about 10 ms steps), whose wait says how the jitter grows with the step.
 if [ "$quick" -eq 1 ]; then
     v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c5_steps=130 c35_steps=130 c7_steps=60
-    c25_steps=60 cs_steps=40 interval=20 c_interval=10
+    c25_steps=60 cs_steps=40 cs7_steps=20 interval=20 c_interval=10
 else
     v_steps=1000 v2_steps=500 vs_steps=300 c_steps=1500 c5_steps=1000 c35_steps=920 c7_steps=300
-    c25_steps=300 cs_steps=300 interval=100 c_interval=20
+    c25_steps=300 cs_steps=300 cs7_steps=160 interval=100 c_interval=20
 fi
 # A replay of a stored job predicts its runs' own length (scripts/replay-job.sh sets it).
 v_steps=${REPLAY_V_STEPS:-$v_steps}

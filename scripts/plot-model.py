@@ -404,16 +404,28 @@ def markdown(model, validation, args, out):
                      f"use the exchange benchmark's ratio.")
     j = model.get("jitter")
     if j:
-        runs = ", ".join(f"{r['k_sqrt_s']:.4f} ({100 * r['relative_sd_at_run']:.0f} % of "
+        form = j.get("form", "sqrt")
+        if form == "proportional":
+            k_run, k, k_mean, k_min, k_max, unit, law = ("k_proportional", "k_proportional",
+                                                         "k_mean_proportional", "k_min_proportional",
+                                                         "k_max_proportional", "k a fraction",
+                                                         "k compute")
+        else:
+            k_run, k, k_mean, k_min, k_max, unit, law = ("k_sqrt_s", "k_sqrt_s", "k_mean_sqrt_s",
+                                                         "k_min_sqrt_s", "k_max_sqrt_s", "k in s^0.5",
+                                                         "k sqrt(compute)")
+        runs = ", ".join(f"{r[k_run]:.4f} ({100 * r['relative_sd_at_run']:.0f} % of "
                          f"{1e3 * r['compute_per_step_s']:.2f} ms)" for r in j["runs"])
-        lines.append(f"Step-to-step jitter (standard deviation of a rank's compute per step k sqrt(compute), "
-                     f"from the calibration runs within the cores whose ranks are all busy; k in s^0.5, "
+        cv = j.get("cv_rms_wait_over_time")
+        pct = lambda v: "-" if v is None else f"{100 * v:.2f} %"
+        chosen = (f" The form ({form}) was chosen by {j['form_chosen_by']}: square root "
+                  f"{pct(cv['sqrt'])}, proportional {pct(cv['proportional'])}.") if cv else ""
+        lines.append(f"Step-to-step jitter (standard deviation of a rank's compute per step {law}, "
+                     f"from the calibration runs within the cores whose ranks are all busy; {unit}, "
                      f"beside it the relative deviation at the run's own step): {runs}; the model takes "
-                     f"the median, k = {j['k_sqrt_s']:.4f} (mean {j['k_mean_sqrt_s']:.4f}, spread "
-                     f"{j['k_min_sqrt_s']:.4f}-{j['k_max_sqrt_s']:.4f}). Within the cores a step lasts the "
-                     f"expected maximum of the ranks' compute + communication. The square-root form was chosen in "
-                     f"session 15 after comparing the predicted waits with sessions 13 and 14's validation runs "
-                     f"(**tuned**; the proportional form's figures on those runs are in model/NOTES.md).")
+                     f"the median, k = {j[k]:.4f} (mean {j[k_mean]:.4f}, spread "
+                     f"{j[k_min]:.4f}-{j[k_max]:.4f}). Within the cores a step lasts the "
+                     f"expected maximum of the ranks' compute + communication.{chosen}")
     lines.append("")
     lines.append("| setup | grid | scale | ranks x threads | steps | measured s | predicted s | wall error | "
                  "band z | compute | comm | wait | idle | pairs | pairs (regression) | exports (edge) | "
@@ -574,6 +586,16 @@ def markdown(model, validation, args, out):
              "the gauge's agreement with repeated runs (model/NOTES.md), before any validation ran "
              "with it: not tuned. Without it (the runs as measured, sessions 1-49's model) on the "
              "same runs: {o} (no-speed-gauge/validation.json)."),
+            ("form_chosen_by" in (model.get("jitter") or {}),
+             "sqrt-jitter",
+             "The jitter's form chosen by the calibration runs' own waits (calibrate --jitter-form "
+             "auto, since session 61: the square root or proportional, whichever predicts each "
+             "all-busy run's wait from the others' better; a Cell+Table still tank at 0.7 in "
+             "rounds a and b gives the runs a range of steps), built after session 60's still tanks "
+             "on 2 ranks waited twice what the square root predicted (8 % of their compute at "
+             "1.8-25 ms steps alike) and eight stored jobs were replayed: **tuned**. With the "
+             "square root always (sessions 15-60, itself chosen in session 15 after seeing "
+             "validation waits) on the same runs: {o} (sqrt-jitter/validation.json)."),
             (True,
              "walls-term",
              "The compute-cost term walls (every wall particle of a rank) no longer offered to "

@@ -8,6 +8,7 @@
 #include "sphperf/stats.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -859,21 +860,26 @@ json time_sharing(const std::vector<SphRun> &runs, const json &compute, int core
     return out;
 }
 // Step-to-step jitter, from the runs within the cores whose ranks all hold field particles:
-// the k of a rank's compute noise per step, standard deviation k sqrt(compute) (jitter.hpp), for
-// which the model's wait (every step lasts the expected maximum of the ranks' compute +
-// communication) equals the measured wait. Each rank's compute is the fitted one at the run's
-// own level (measured over fitted), so k also covers imbalance the model cannot foresee (two
-// cores at different speeds), and the communication is the measured one (validated apart).
-json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
+// the k of a rank's compute noise per step (jitter.hpp) for which the model's wait (every step
+// lasts the expected maximum of the ranks' compute + communication) equals the measured wait.
+// Each rank's compute is the fitted one at the run's own level (measured over fitted), so k also
+// covers imbalance the model cannot foresee (two cores at different speeds), and the
+// communication is the measured one (validated apart). Both forms are fitted; the model uses
+// `form`, or where it is not given the one whose leave-one-run-out prediction of the runs'
+// waits is closer (the runs' steps differ by grid: Cell+Sorted's are a third of the others').
+json jitter(const std::vector<SphRun> &runs, const json &compute, int cores,
+            std::optional<JitterForm> form) {
+    constexpr std::array forms{JitterForm::sqrt, JitterForm::proportional};
     json per_run = json::array();
-    std::vector<double> ks;
+    std::vector<WaitRun> wait_runs;
+    std::map<JitterForm, std::vector<double>> ks;
     for (const auto &r : runs) {
         const json *entry = compute_entry(compute, r);
         if (time_shared(r, cores) || r.config.ranks < 2 || !entry)
             continue;
         const LinearFit f = compute_cost_of(*entry, r.config.setup);
-        std::vector<BusyInterval> busy;
-        double measured_compute = 0, fitted_sum = 0, measured_wait = 0, steps = 0;
+        WaitRun w;
+        double measured_compute = 0, fitted_sum = 0, steps = 0;
         for (const auto &iv : r.intervals) {
             const bool all_busy = std::all_of(iv.ranks.begin(), iv.ranks.end(), [](const auto &k) {
                 return k.field_mean > 0 && k.steps >= 1;
@@ -884,45 +890,88 @@ json jitter(const std::vector<SphRun> &runs, const json &compute, int cores) {
             for (const auto &rk : iv.ranks) {
                 b.comm_s.push_back(rk.timer("comm_s") / rk.steps);
                 measured_compute += rk.compute_s();
-                measured_wait += rk.timer("wait_s");
+                w.measured_wait_s += rk.timer("wait_s");
+                w.measured_time_s += rk.compute_s() + rk.timer("comm_s") + rk.timer("wait_s");
             }
             for (double c : b.compute_s)
                 fitted_sum += c * b.steps;
             steps += b.steps;
-            busy.push_back(std::move(b));
+            w.busy.push_back(std::move(b));
         }
-        if (busy.empty() || !(fitted_sum > 0))
+        if (w.busy.empty() || !(fitted_sum > 0) || !(w.measured_time_s > 0))
             continue;
         // The fitted compute at this run's own level: k is jitter, not the machine's drift.
-        for (auto &b : busy)
+        for (auto &b : w.busy)
             for (auto &c : b.compute_s)
                 c *= measured_compute / fitted_sum;
-        const double k = fit_jitter(busy, measured_wait);
         const double mean_compute =
             measured_compute / (steps * static_cast<double>(r.config.ranks));
-        ks.push_back(k);
-        per_run.push_back({{"run", r.path},
-                           {"k_sqrt_s", k},
-                           {"at_bound", k >= jitter_k_max_sqrt_s},
-                           {"compute_per_step_s", mean_compute},
-                           {"relative_sd_at_run", jitter_sd(k, mean_compute) / mean_compute},
-                           {"measured_wait_s", measured_wait},
-                           {"modelled_wait_without_jitter_s", modelled_wait(busy, 0)},
-                           {"busy_steps", steps}});
+        json entry_k = json::object();
+        for (JitterForm fm : forms) {
+            const double k = fit_jitter(w.busy, w.measured_wait_s, fm);
+            ks[fm].push_back(k);
+            entry_k[std::string(to_string(fm))] = k;
+        }
+        // Either form's deviation at the run's own mean step: the same figure.
+        const double relative =
+            jitter_sd(Jitter{JitterForm::proportional, entry_k.at("proportional").get<double>()},
+                      mean_compute) /
+            mean_compute;
+        per_run.push_back(
+            {{"run", r.path},
+             {"k_sqrt_s", entry_k.at("sqrt")},
+             {"k_proportional", entry_k.at("proportional")},
+             {"at_bound", entry_k.at("sqrt").get<double>() >= jitter_k_max ||
+                              entry_k.at("proportional").get<double>() >= jitter_k_max},
+             {"compute_per_step_s", mean_compute},
+             {"relative_sd_at_run", relative},
+             {"measured_wait_s", w.measured_wait_s},
+             {"modelled_wait_without_jitter_s", modelled_wait(w.busy, Jitter{})},
+             {"busy_steps", steps}});
+        wait_runs.push_back(std::move(w));
     }
-    if (ks.empty())
+    if (wait_runs.empty())
         return nullptr;
-    const Summary s = sphperf::summarize(ks);
-    return {{"k_sqrt_s", s.median},
-            {"k_mean_sqrt_s", s.avg},
-            {"k_min_sqrt_s", s.min},
-            {"k_max_sqrt_s", s.max},
+    json cv = json::object();
+    std::map<JitterForm, double> score;
+    for (JitterForm fm : forms) {
+        score[fm] = jitter_cv_rms(wait_runs, fm);
+        cv[std::string(to_string(fm))] = std::isfinite(score[fm]) ? json(score[fm]) : json(nullptr);
+    }
+    // Without a score (fewer than 3 runs) the square root, sessions 15-60's form.
+    const JitterForm chosen = form ? *form
+                              : std::isfinite(score[JitterForm::proportional]) &&
+                                      score[JitterForm::proportional] < score[JitterForm::sqrt]
+                                  ? JitterForm::proportional
+                                  : JitterForm::sqrt;
+    const Summary sq = sphperf::summarize(ks[JitterForm::sqrt]);
+    const Summary pr = sphperf::summarize(ks[JitterForm::proportional]);
+    return {{"form", to_string(chosen)},
+            {"form_chosen_by", form ? "option (calibrate --jitter-form)"
+                               : std::isfinite(score[JitterForm::sqrt])
+                                   ? "leave-one-run-out: the form whose prediction of each "
+                                     "run's wait from the other runs' median k is closer (root "
+                                     "mean square of the error over the run's time)"
+                                   : "fewer than 3 runs to cross-validate: the square root"},
+            {"cv_rms_wait_over_time", cv},
+            {"k_sqrt_s", sq.median},
+            {"k_mean_sqrt_s", sq.avg},
+            {"k_min_sqrt_s", sq.min},
+            {"k_max_sqrt_s", sq.max},
+            {"k_proportional", pr.median},
+            {"k_mean_proportional", pr.avg},
+            {"k_min_proportional", pr.min},
+            {"k_max_proportional", pr.max},
             {"uses", "median"},
-            {"form", "standard deviation of a rank's compute per step = k sqrt(compute_s)"},
+            {"forms",
+             {{"sqrt", "standard deviation of a rank's compute per step = k sqrt(compute_s), "
+                       "k in s^0.5 (k_sqrt_s)"},
+              {"proportional", "standard deviation of a rank's compute per step = k "
+                               "compute_s, k a fraction (k_proportional)"}}},
             {"runs", per_run},
             {"method", "per run within the cores with every rank busy: the k for which the "
-                       "expected maximum over ranks reproduces the measured wait; the median over "
-                       "runs"}};
+                       "expected maximum over ranks reproduces the measured wait, in each form; "
+                       "the median over runs of the chosen form's"}};
 }
 } // namespace
 
@@ -1374,7 +1423,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
         model["level_scatter"] = pooled_level_scatter(compute);
     }
     model["time_sharing"] = time_sharing(runs, compute, cores);
-    if (json j = jitter(runs, compute, cores); !j.is_null())
+    if (json j = jitter(runs, compute, cores, opt.jitter_form); !j.is_null())
         model["jitter"] = j;
     json moves = json::object();
     for (const auto &[grid, pts] : by_grid)

@@ -1,5 +1,7 @@
 #include "sphperf/model/jitter.hpp"
 
+#include "sphperf/stats.hpp"
+
 #include <gsl/gsl_cdf.h>
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_integration.h>
@@ -76,7 +78,11 @@ double expected_max(std::span<const double> mean, std::span<const double> sd) {
     return lo + area;
 }
 
-double modelled_wait(std::span<const BusyInterval> intervals, double k_sqrt_s) {
+std::string_view to_string(JitterForm form) {
+    return form == JitterForm::sqrt ? "sqrt" : "proportional";
+}
+
+double modelled_wait(std::span<const BusyInterval> intervals, Jitter j) {
     double wait = 0;
     std::vector<double> mean, sd;
     for (const auto &iv : intervals) {
@@ -84,7 +90,7 @@ double modelled_wait(std::span<const BusyInterval> intervals, double k_sqrt_s) {
         sd.clear();
         for (std::size_t k = 0; k < iv.compute_s.size(); ++k) {
             mean.push_back(iv.compute_s[k] + iv.comm_s.at(k));
-            sd.push_back(jitter_sd(k_sqrt_s, iv.compute_s[k]));
+            sd.push_back(jitter_sd(j, iv.compute_s[k]));
         }
         const double step = expected_max(mean, sd);
         for (double m : mean)
@@ -93,16 +99,38 @@ double modelled_wait(std::span<const BusyInterval> intervals, double k_sqrt_s) {
     return wait;
 }
 
-double fit_jitter(std::span<const BusyInterval> intervals, double measured_wait_s) {
+double fit_jitter(std::span<const BusyInterval> intervals, double measured_wait_s,
+                  JitterForm form) {
     // The modelled wait grows with k: bisection.
-    if (modelled_wait(intervals, 0) >= measured_wait_s)
+    const auto wait = [&](double k) { return modelled_wait(intervals, Jitter{form, k}); };
+    if (wait(0) >= measured_wait_s)
         return 0;
-    if (modelled_wait(intervals, jitter_k_max_sqrt_s) <= measured_wait_s)
-        return jitter_k_max_sqrt_s;
-    double lo = 0, hi = jitter_k_max_sqrt_s;
+    if (wait(jitter_k_max) <= measured_wait_s)
+        return jitter_k_max;
+    double lo = 0, hi = jitter_k_max;
     while (hi - lo > 1e-9)
-        (modelled_wait(intervals, 0.5 * (lo + hi)) < measured_wait_s ? lo : hi) = 0.5 * (lo + hi);
+        (wait(0.5 * (lo + hi)) < measured_wait_s ? lo : hi) = 0.5 * (lo + hi);
     return 0.5 * (lo + hi);
+}
+
+double jitter_cv_rms(std::span<const WaitRun> runs, JitterForm form) {
+    if (runs.size() < 3)
+        return std::numeric_limits<double>::quiet_NaN();
+    std::vector<double> k;
+    for (const auto &r : runs)
+        k.push_back(fit_jitter(r.busy, r.measured_wait_s, form));
+    double sum = 0;
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        std::vector<double> others;
+        for (std::size_t o = 0; o < runs.size(); ++o)
+            if (o != i)
+                others.push_back(k[o]);
+        const double predicted =
+            modelled_wait(runs[i].busy, Jitter{form, summarize(others).median});
+        const double e = (predicted - runs[i].measured_wait_s) / runs[i].measured_time_s;
+        sum += e * e;
+    }
+    return std::sqrt(sum / static_cast<double>(runs.size()));
 }
 
 } // namespace sphperf::model

@@ -68,9 +68,9 @@ struct Costs {
     bool sharing_replay = false;
     double replay_slice_s = 1.5e-3;
     std::optional<std::array<double, 3>> segment_shares;
-    // Step-to-step jitter of a rank's compute, standard deviation k sqrt(compute) (0: none
-    // measured); within the cores a step lasts the expected maximum over the ranks.
-    double jitter_k_sqrt_s = 0;
+    // Step-to-step jitter of a rank's compute (k 0: none measured); within the cores a step
+    // lasts the expected maximum over the ranks.
+    Jitter jitter;
     // Peak RSS per rank (model/NOTES.md "Memory"); absent in a model without calibration RSS.
     double bytes_per_particle = 0, bytes_per_interaction = 0, fixed_bytes = 0;
 };
@@ -163,8 +163,14 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
         c.exchange = ExchangeModel::from_profile(model.at("machine"));
         c.record_bytes = model.at("record_bytes").get<double>();
         c.cores = model.at("machine").at("cores").get<int>();
-        if (model.contains("jitter"))
-            c.jitter_k_sqrt_s = model.at("jitter").at("k_sqrt_s").get<double>();
+        if (model.contains("jitter")) {
+            // Models before session 61 carry the square root alone, without "form".
+            const auto &j = model.at("jitter");
+            if (j.value("form", "sqrt") == "proportional")
+                c.jitter = {JitterForm::proportional, j.at("k_proportional").get<double>()};
+            else
+                c.jitter = {JitterForm::sqrt, j.at("k_sqrt_s").get<double>()};
+        }
         if (model.contains("time_sharing"))
             for (const auto &t : model.at("time_sharing")) {
                 Costs::Sharing sh{t.at("overhead_s_per_step").get<double>(),
@@ -468,7 +474,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         for (int r : on_node[static_cast<std::size_t>(n)]) {
             const auto &s = out[static_cast<std::size_t>(r)];
             mean.push_back(s.compute_s + s.comm_s);
-            sd.push_back(jitter_sd(c.jitter_k_sqrt_s, s.compute_s));
+            sd.push_back(jitter_sd(c.jitter, s.compute_s));
         }
     }
     step_s = std::max(shared_step, mean.empty() ? 0.0 : expected_max(mean, sd));
@@ -612,17 +618,20 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                       {"threads", req.threads}, {"interval", req.interval},
                       {"cores", c.cores},       {"ranks", req.ranks},
                       {"nodes", req.nodes},     {"overlap", req.overlap}};
-    out["model_source"] = {{"git_commit", model.value("git_commit", "")},
-                           {"timestamp", model.value("timestamp", "")},
-                           {"trace", trace.source},
-                           {"trace_scale", trace.scale},
-                           {"trace_delta", trace.delta},
-                           {"jitter_k_sqrt_s", c.jitter_k_sqrt_s},
-                           {"compute_time_profile", c.profile.empty() ? "none" : "froude"},
-                           {"rank_disorder", c.column_disorder ? "columns" : "none"},
-                           {"memory_order_time", c.order_level       ? "simulated"
-                                                 : c.column_disorder ? "froude"
-                                                                     : "none"}};
+    out["model_source"] = {
+        {"git_commit", model.value("git_commit", "")},
+        {"timestamp", model.value("timestamp", "")},
+        {"trace", trace.source},
+        {"trace_scale", trace.scale},
+        {"trace_delta", trace.delta},
+        {"jitter_form", to_string(c.jitter.form)},
+        {c.jitter.form == JitterForm::sqrt ? "jitter_k_sqrt_s" : "jitter_k_proportional",
+         c.jitter.k},
+        {"compute_time_profile", c.profile.empty() ? "none" : "froude"},
+        {"rank_disorder", c.column_disorder ? "columns" : "none"},
+        {"memory_order_time", c.order_level       ? "simulated"
+                              : c.column_disorder ? "froude"
+                                                  : "none"}};
     if (c.column_disorder)
         out["model_source"]["rank_disorder_source"] = c.column_disorder->source;
     out["fluid_particles"] = probe.fluid_particles;

@@ -25,6 +25,7 @@ struct Options {
     std::string speed_gauge = "interval";
     std::string gauge_reference = "pooled";
     bool walls_term = false;
+    std::string jitter_form = "auto";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -95,6 +96,13 @@ int run(int argc, char **argv) {
                   "Also offer the compute-cost term walls (every wall particle of a rank), as "
                   "sessions 1-50 did (a rank's dry walls cost nothing measurable: model/NOTES.md, "
                   "session 51)");
+    cal->add_option("--jitter-form", o.jitter_form,
+                    "How a rank's step-to-step compute noise grows with its step: auto (the "
+                    "form whose leave-one-run-out prediction of the calibration runs' waits is "
+                    "closer, since session 61), sqrt (standard deviation k sqrt(compute), "
+                    "sessions 15-60) or proportional (k compute, sessions 1-14)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"auto", "sqrt", "proportional"}));
 
     auto &q = o.predict;
     auto *pre = app.add_subcommand("predict", "Predict the runtime per rank count");
@@ -221,7 +229,10 @@ int run(int argc, char **argv) {
              : o.speed_gauge == "run"           ? SpeedGauge::run
                                                 : SpeedGauge::off,
              o.gauge_reference == "pooled" ? GaugeReference::pooled : GaugeReference::grid,
-             o.walls_term});
+             o.walls_term,
+             o.jitter_form == "auto"   ? std::nullopt
+             : o.jitter_form == "sqrt" ? std::optional<JitterForm>(JitterForm::sqrt)
+                                       : std::optional<JitterForm>(JitterForm::proportional)});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -553,11 +553,24 @@ std::string calibration_table(const json &m) {
                      e.at("dof").get<int>(), wall_band_sds);
     if (m.contains("jitter")) {
         const auto &j = m.at("jitter");
-        s += fmt("Step-to-step jitter of a rank's compute (all-busy runs within the cores): "
-                 "standard deviation k sqrt(compute), k %.4f s^0.5 (median of %zu runs; mean "
-                 "%.4f, spread %.4f-%.4f)\n",
-                 d(j.at("k_sqrt_s")), j.at("runs").size(), d(j.at("k_mean_sqrt_s")),
-                 d(j.at("k_min_sqrt_s")), d(j.at("k_max_sqrt_s")));
+        s += fmt("Step-to-step jitter of a rank's compute (all-busy runs within the cores, "
+                 "median of %zu runs): standard deviation k sqrt(compute), k %.4f s^0.5 (spread "
+                 "%.4f-%.4f)",
+                 j.at("runs").size(), d(j.at("k_sqrt_s")), d(j.at("k_min_sqrt_s")),
+                 d(j.at("k_max_sqrt_s")));
+        if (j.contains("k_proportional")) { // since session 61
+            const auto cv = [&](const char *form) {
+                const auto &v = j.at("cv_rms_wait_over_time").at(form);
+                return v.is_null() ? std::string("-") : fmt("%.2f %%", 100 * d(v));
+            };
+            s += fmt(", or k compute, k %.3f (spread %.3f-%.3f); uses %s (%s; leave-one-run-out "
+                     "wait error over the run's time: sqrt %s, proportional %s)",
+                     d(j.at("k_proportional")), d(j.at("k_min_proportional")),
+                     d(j.at("k_max_proportional")), j.at("form").get<std::string>().c_str(),
+                     j.at("form_chosen_by").get<std::string>().c_str(), cv("sqrt").c_str(),
+                     cv("proportional").c_str());
+        }
+        s += "\n";
     }
     const auto &rl = m.at("roofline");
     s += fmt("Roofline: %.1f flops and %.1f bytes per interaction (thesis 89 and 56), intensity "

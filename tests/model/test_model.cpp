@@ -694,34 +694,78 @@ TEST(Jitter, ExpectedMaxMatchesClosedForms) {
                  std::invalid_argument);
 }
 
+namespace {
+// The wait of `steps` steps simulated with a planted noise of standard deviation
+// jitter_sd(j, compute) on each rank; the blocking exchange makes every rank wait for the slowest.
+double simulated_wait(std::mt19937_64 &rng, Jitter j, const std::vector<double> &compute,
+                      const std::vector<double> &comm, int steps) {
+    std::normal_distribution<double> z;
+    double wait = 0;
+    for (int s = 0; s < steps; ++s) {
+        std::vector<double> t;
+        for (std::size_t r = 0; r < compute.size(); ++r)
+            t.push_back(compute[r] + jitter_sd(j, compute[r]) * z(rng) + comm[r]);
+        const double step = *std::max_element(t.begin(), t.end());
+        for (double v : t)
+            wait += step - v;
+    }
+    return wait;
+}
+} // namespace
+
 TEST(Jitter, FitRecoversAPlantedKFromSimulatedSteps) {
-    // Steps simulated with a planted noise of standard deviation k sqrt(compute) on unequal
-    // ranks; the measured wait is what the blocking exchange makes them pay. The fit must find
+    // Steps simulated with a planted noise on unequal ranks, in either form; the fit must find
     // the planted k again.
     std::mt19937_64 rng(7);
-    std::normal_distribution<double> z;
     const std::vector<double> compute{0.010, 0.009, 0.0105}, comm{2e-4, 3e-4, 2e-4};
-    for (double planted : {0.005, 0.015}) {
-        constexpr int steps = 40000;
-        double wait = 0;
-        for (int s = 0; s < steps; ++s) {
-            std::vector<double> t;
-            for (std::size_t r = 0; r < compute.size(); ++r)
-                t.push_back(compute[r] + planted * std::sqrt(compute[r]) * z(rng) + comm[r]);
-            const double step = *std::max_element(t.begin(), t.end());
-            for (double v : t)
-                wait += step - v;
+    constexpr int steps = 40000;
+    for (JitterForm form : {JitterForm::sqrt, JitterForm::proportional})
+        for (double planted : form == JitterForm::sqrt ? std::vector<double>{0.005, 0.015}
+                                                       : std::vector<double>{0.05, 0.15}) {
+            const double wait = simulated_wait(rng, {form, planted}, compute, comm, steps);
+            const std::vector<BusyInterval> busy{{steps, compute, comm}};
+            EXPECT_NEAR(fit_jitter(busy, wait, form), planted, 0.03 * planted)
+                << to_string(form) << " " << planted;
         }
-        const std::vector<BusyInterval> busy{{steps, compute, comm}};
-        EXPECT_NEAR(fit_jitter(busy, wait), planted, 0.03 * planted) << planted;
-    }
-    // The deviation grows as the square root of the step: four times the compute, twice the
-    // standard deviation, half of it relative to the step.
-    EXPECT_DOUBLE_EQ(jitter_sd(0.01, 0.04), 2 * jitter_sd(0.01, 0.01));
+    // The square root: four times the compute, twice the standard deviation, half of it
+    // relative to the step; proportional: four times.
+    EXPECT_DOUBLE_EQ(jitter_sd({JitterForm::sqrt, 0.01}, 0.04),
+                     2 * jitter_sd({JitterForm::sqrt, 0.01}, 0.01));
+    EXPECT_DOUBLE_EQ(jitter_sd({JitterForm::proportional, 0.1}, 0.04),
+                     4 * jitter_sd({JitterForm::proportional, 0.1}, 0.01));
     // Less wait than the ranks' own imbalance gives: no jitter; more than any k gives: the bound.
     const std::vector<BusyInterval> uneven{{100, {0.01, 0.005}, {0, 0}}};
-    EXPECT_EQ(fit_jitter(uneven, 0.1), 0.0);
-    EXPECT_EQ(fit_jitter(uneven, 1e6), jitter_k_max_sqrt_s);
+    for (JitterForm form : {JitterForm::sqrt, JitterForm::proportional}) {
+        EXPECT_EQ(fit_jitter(uneven, 0.1, form), 0.0);
+        EXPECT_EQ(fit_jitter(uneven, 1e6, form), jitter_k_max);
+    }
+}
+
+TEST(Jitter, CrossValidationPicksThePlantedForm) {
+    // Runs of 2 busy ranks whose steps differ 3- and 9-fold (Cell+Sorted's, Cell+Table's and a
+    // larger scale's), their waits simulated with one form: predicting each run's wait from the
+    // others' median k, the planted form must come out closer, and by a clear margin.
+    std::mt19937_64 rng(11);
+    const std::vector<double> step_s{0.0018, 0.0020, 0.0052, 0.0050, 0.016, 0.018};
+    for (JitterForm planted : {JitterForm::sqrt, JitterForm::proportional}) {
+        const Jitter j{planted, planted == JitterForm::sqrt ? 0.01 : 0.08};
+        std::vector<WaitRun> runs;
+        for (double c : step_s) {
+            const std::vector<double> compute{c, 0.98 * c}, comm{1e-5, 1e-5};
+            constexpr int steps = 4000;
+            WaitRun w;
+            w.busy = {{steps, compute, comm}};
+            w.measured_wait_s = simulated_wait(rng, j, compute, comm, steps);
+            w.measured_time_s = steps * (compute[0] + compute[1] + 2e-5) + w.measured_wait_s;
+            runs.push_back(std::move(w));
+        }
+        const double right = jitter_cv_rms(runs, planted);
+        const double wrong = jitter_cv_rms(
+            runs, planted == JitterForm::sqrt ? JitterForm::proportional : JitterForm::sqrt);
+        EXPECT_LT(2 * right, wrong) << to_string(planted) << ": " << right << " against " << wrong;
+    }
+    // Two runs leave one other: no median to cross-validate with.
+    EXPECT_TRUE(std::isnan(jitter_cv_rms(std::vector<WaitRun>(2), JitterForm::sqrt)));
 }
 
 namespace {

@@ -4,6 +4,7 @@
 // prediction against measured reports. Each function returns the JSON document it describes.
 #include "sphperf/model/comm_model.hpp"
 #include "sphperf/model/fit.hpp"
+#include "sphperf/model/jitter.hpp"
 #include "sphperf/model/sph_run.hpp"
 #include "sphperf/model/workload.hpp"
 
@@ -114,6 +115,9 @@ struct CalibrateOptions {
     // Offer the cost term `walls` (every wall particle of a rank) to the term selection, as
     // sessions 1-50 did; session 51 measured that a rank's dry walls cost nothing (calibrate.cpp).
     bool walls_term = false;
+    // The jitter's form (jitter.hpp): chosen by leave-one-run-out cross-validation of the
+    // calibration runs' waits (nullopt, the default since session 61), or this one.
+    std::optional<JitterForm> jitter_form;
 };
 // The speed gauge's normalisation (session 50): each run's gauge CPU seconds per sample over
 // the runs' median is the host's speed factor during that run, and every time the run measured
