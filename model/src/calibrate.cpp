@@ -935,7 +935,7 @@ json jitter(const std::vector<SphRun> &runs, const json &compute, int cores,
     json cv = json::object();
     std::map<JitterForm, double> score;
     for (JitterForm fm : forms) {
-        score[fm] = jitter_cv_rms(wait_runs, fm);
+        score[fm] = jitter_cv_rms(wait_runs, ks[fm], fm);
         cv[std::string(to_string(fm))] = std::isfinite(score[fm]) ? json(score[fm]) : json(nullptr);
     }
     // Without a score (fewer than 3 runs) the square root, sessions 15-60's form.

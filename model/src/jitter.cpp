@@ -113,12 +113,11 @@ double fit_jitter(std::span<const BusyInterval> intervals, double measured_wait_
     return 0.5 * (lo + hi);
 }
 
-double jitter_cv_rms(std::span<const WaitRun> runs, JitterForm form) {
+double jitter_cv_rms(std::span<const WaitRun> runs, std::span<const double> k, JitterForm form) {
+    if (k.size() != runs.size())
+        throw std::invalid_argument("jitter_cv_rms: needs one k per run");
     if (runs.size() < 3)
         return std::numeric_limits<double>::quiet_NaN();
-    std::vector<double> k;
-    for (const auto &r : runs)
-        k.push_back(fit_jitter(r.busy, r.measured_wait_s, form));
     double sum = 0;
     for (std::size_t i = 0; i < runs.size(); ++i) {
         std::vector<double> others;

@@ -759,13 +759,22 @@ TEST(Jitter, CrossValidationPicksThePlantedForm) {
             w.measured_time_s = steps * (compute[0] + compute[1] + 2e-5) + w.measured_wait_s;
             runs.push_back(std::move(w));
         }
-        const double right = jitter_cv_rms(runs, planted);
-        const double wrong = jitter_cv_rms(
-            runs, planted == JitterForm::sqrt ? JitterForm::proportional : JitterForm::sqrt);
+        const auto score = [&](JitterForm form) {
+            std::vector<double> k;
+            for (const auto &w : runs)
+                k.push_back(fit_jitter(w.busy, w.measured_wait_s, form));
+            return jitter_cv_rms(runs, k, form);
+        };
+        const double right = score(planted);
+        const double wrong =
+            score(planted == JitterForm::sqrt ? JitterForm::proportional : JitterForm::sqrt);
         EXPECT_LT(2 * right, wrong) << to_string(planted) << ": " << right << " against " << wrong;
     }
-    // Two runs leave one other: no median to cross-validate with.
-    EXPECT_TRUE(std::isnan(jitter_cv_rms(std::vector<WaitRun>(2), JitterForm::sqrt)));
+    // Two runs leave one other: no median to cross-validate with; one k per run or an error.
+    const std::vector<WaitRun> two(2);
+    EXPECT_TRUE(std::isnan(jitter_cv_rms(two, std::vector<double>{0.1, 0.1}, JitterForm::sqrt)));
+    EXPECT_THROW((void)jitter_cv_rms(two, std::vector<double>{0.1}, JitterForm::sqrt),
+                 std::invalid_argument);
 }
 
 namespace {

@@ -54,9 +54,10 @@ struct WaitRun {
     std::vector<BusyInterval> busy;
     double measured_wait_s = 0, measured_time_s = 0;
 };
-// Leave one run out: each run's wait predicted with the median k of the other runs (fitted in
-// this form), its error over the run's time; the root mean square over the runs. NaN with
-// fewer than 3 runs (no median of 2 others).
-double jitter_cv_rms(std::span<const WaitRun> runs, JitterForm form);
+// Leave one run out: each run's wait predicted with the median of the other runs' k (k[i],
+// fit_jitter of run i in this form), its error over the run's time; the root mean square over
+// the runs. NaN with fewer than 3 runs (no median of 2 others); std::invalid_argument when k
+// does not hold one value per run.
+double jitter_cv_rms(std::span<const WaitRun> runs, std::span<const double> k, JitterForm form);
 
 } // namespace sphperf::model
