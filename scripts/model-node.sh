@@ -391,7 +391,12 @@ model_and_validate "$out" levelled-one-se froude
 # by side, as many at once as there are cores (one after another they took 16 s of the job on
 # the VM's Intel host, session 45). Each one's arrays are copied when it starts.
 beside_pids=()
-beside() { # beside CMD...: CMD in the background, its stdout dropped, at most nproc at once
+# In --quick their figures mean nothing: one of each kind checks that its path runs (another
+# calibration subset, a calibrate option, a predict option, another term rule and profile),
+# 5 of the 17 (the other 12 took about 5 s of the quick job's 2 minutes).
+quick_comparisons=" first-runs sqrt-jitter froude-order no-profile pooled-one-percent "
+beside() { # beside model_and_validate DIR ...: in the background, stdout dropped, nproc at once
+    [ "$quick" -eq 0 ] || [[ "$quick_comparisons" == *" $(basename "$2") "* ]] || return 0
     while [ "$(jobs -rp | wc -l)" -ge "$(nproc)" ]; do sleep 0.1; done
     "$@" >/dev/null &
     beside_pids+=("$!")

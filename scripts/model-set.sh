@@ -17,7 +17,7 @@
 # its list and table runs about twice as long as on the Intel host before. cs7_steps: Cell+Table's
 # still tank at 0.7 (about 10 ms steps), whose wait says how the jitter grows with the step.
 if [ "$quick" -eq 1 ]; then
-    v_steps=60 v2_steps=20 vs_steps=40 c_steps=200 c5_steps=130 c35_steps=130 c7_steps=60
+    v_steps=40 v2_steps=20 vs_steps=40 c_steps=200 c5_steps=130 c35_steps=130 c7_steps=60
     c25_steps=60 cs_steps=40 cs7_steps=20 interval=20 c_interval=10
 else
     v_steps=1000 v2_steps=500 vs_steps=300 c_steps=1500 c5_steps=1000 c35_steps=920 c7_steps=300
