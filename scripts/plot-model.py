@@ -728,10 +728,19 @@ def markdown(model, validation, args, out):
              "whole run's order (sessions 1-55, predict --rank-disorder none) on the same runs: "
              "{o} (one-order-per-run/validation.json)."),
         ]
+        not_compared = []
         for in_use, subdir, line in choices:
             o = untuned(subdir)
             if in_use and o:
                 lines.append(line.format(o=o))
+            elif in_use:
+                not_compared.append(subdir)
+        if not_compared:
+            # The --quick job runs 5 of the 17 comparison models (scripts/model-node.sh).
+            lines.append("Tuned choices in use without their comparison model in this job (no "
+                         "validation.json in " + ", ".join(f"{d}/" for d in not_compared)
+                         + "; `--quick` runs one comparison of each kind): their untuned "
+                         "figures are not measured here.")
         repeated, cal_repeated = repeated_runs(args.dir, "val"), repeated_runs(args.dir, "cal")
         o = untuned("first-runs")
         if (repeated or cal_repeated) and o:
