@@ -106,24 +106,78 @@ void CellSorted::cut_blocks() {
         blocks_[t] = static_cast<std::uint32_t>(
             std::lower_bound(cost_.begin(), cost_.end(), target) - cost_.begin());
     }
-    block_cost_.resize(static_cast<std::size_t>(threads));
-    for (std::size_t t = 0; t < block_cost_.size(); ++t)
-        block_cost_[t] = cost_[blocks_[t + 1]] - cost_[blocks_[t]];
+    // Each block in chunks of equal cost (start_pass, next_cells).
+    chunk_bounds_.resize(static_cast<std::size_t>(threads) * chunks_per_block + 1);
+    for (int t = 0; t < threads; ++t) {
+        const std::uint64_t c0 = cost_[blocks_[t]], c1 = cost_[blocks_[t + 1]];
+        const std::size_t k0 = static_cast<std::size_t>(t) * chunks_per_block;
+        chunk_bounds_[k0] = blocks_[t];
+        for (int c = 1; c < chunks_per_block; ++c) {
+            const std::uint64_t target = c0 + (c1 - c0) * static_cast<std::uint64_t>(c) /
+                                                  static_cast<std::uint64_t>(chunks_per_block);
+            // Within the block (cost_ is flat over empty cells: the first cell reaching it).
+            chunk_bounds_[k0 + static_cast<std::size_t>(c)] = std::clamp(
+                static_cast<std::uint32_t>(std::lower_bound(cost_.begin(), cost_.end(), target) -
+                                           cost_.begin()),
+                blocks_[t], blocks_[t + 1]);
+        }
+    }
+    chunk_bounds_.back() = blocks_[static_cast<std::size_t>(threads)];
+    if (queue_count_ != threads) {
+        queues_ = std::make_unique<ChunkQueue[]>(static_cast<std::size_t>(threads));
+        queue_count_ = threads;
+    }
     threads_ = threads;
+}
+
+void CellSorted::start_pass() {
+    for (int t = 0; t < queue_count_; ++t) {
+        const auto first = static_cast<std::uint64_t>(t) * chunks_per_block;
+        queues_[static_cast<std::size_t>(t)].range.store(first | (first + chunks_per_block) << 32,
+                                                         std::memory_order_relaxed);
+    }
+}
+
+bool CellSorted::next_cells(int thread, std::uint32_t &first, std::uint32_t &last) {
+    // Takes chunk [front] (own == true) or [back - 1] of a queue; false when it is empty.
+    auto take = [&](int t, bool own) {
+        std::atomic<std::uint64_t> &q = queues_[static_cast<std::size_t>(t)].range;
+        std::uint64_t r = q.load(std::memory_order_relaxed);
+        for (;;) {
+            const std::uint64_t front = r & 0xffffffffu, back = r >> 32;
+            if (front >= back)
+                return false;
+            const std::uint64_t next = own ? (front + 1) | back << 32 : front | (back - 1) << 32;
+            if (q.compare_exchange_weak(r, next, std::memory_order_acq_rel,
+                                        std::memory_order_relaxed)) {
+                const std::size_t k = own ? front : back - 1;
+                first = chunk_bounds_[k];
+                last = chunk_bounds_[k + 1];
+                return true;
+            }
+        }
+    };
+    if (take(thread, true))
+        return true;
+    for (int d = 1; d < queue_count_; ++d)
+        if (take((thread + d) % queue_count_, false))
+            return true;
+    return false;
 }
 
 std::vector<double> CellSorted::thread_shares(int threads) {
     const auto n = static_cast<std::size_t>(threads);
     // The last step's blocks: their cost and the time each thread spent on them in the pair
     // passes give its seconds per unit of cost, smoothed over about 1 / speed_smoothing steps.
-    if (threads == threads_ && pass_time_.size() == n && block_cost_.size() == n) {
+    if (threads == threads_ && pass_time_.size() == n) {
         if (seconds_per_cost_.size() != n)
             seconds_per_cost_.assign(n, 0.0);
         for (std::size_t t = 0; t < n; ++t) {
-            const double seconds = pass_time_[t].seconds;
-            if (block_cost_[t] == 0 || !(seconds > 0))
+            // The cells it went through, its own block's and what it took of the others'.
+            const double seconds = pass_time_[t].seconds, cost = pass_time_[t].cost;
+            if (!(cost > 0) || !(seconds > 0))
                 continue;
-            const double rate = seconds / static_cast<double>(block_cost_[t]);
+            const double rate = seconds / cost;
             double &r = seconds_per_cost_[t];
             r = r > 0 ? r + speed_smoothing * (rate - r) : rate;
         }
@@ -370,6 +424,7 @@ CellSorted::View CellSorted::view() const {
             owned_,
             blocks_.data(),
             threads_,
+            cost_.data(),
             remote_columns_.data(),
             fluid_below_.data()};
 }
@@ -678,18 +733,51 @@ std::pair<int, int> thread_cells(const CellSorted::View &v) {
     return {static_cast<int>(c0), static_cast<int>(c1)};
 }
 
-// Books the calling thread's time in a pair pass (from construction to destruction, inside
-// the parallel region) to the grid, which cuts the next step's blocks by it.
-class PassTimer {
+// A pair pass's cells for the calling thread (inside the parallel region; grid.start_pass()
+// before it): chunks of its own block, then of the others' (CellSorted::next_cells), or with
+// another team size than the blocks' one equal share, not booked. Books the thread's time and
+// the cost of its cells in `columns` to the grid when it goes out of scope; the next step's
+// blocks are cut by them. The passes keep their cell loops as they were: a lambda per cell
+// made GCC call the force pass's per-particle body instead of inlining it, and the density
+// pass ran 9 % slower at 1 thread (session 62).
+class ThreadCells {
 public:
-    explicit PassTimer(CellSorted &grid) : grid_(grid), start_(omp_get_wtime()) {}
-    PassTimer(const PassTimer &) = delete;
-    PassTimer &operator=(const PassTimer &) = delete;
-    ~PassTimer() { grid_.add_pass_time(omp_get_thread_num(), omp_get_wtime() - start_); }
+    ThreadCells(CellSorted &grid, const CellSorted::View &v, ColumnSet columns)
+        : grid_(grid), v_(v), columns_(columns), thread_(omp_get_thread_num()),
+          chunked_(omp_get_num_threads() == v.threads), start_(omp_get_wtime()) {}
+    ThreadCells(const ThreadCells &) = delete;
+    ThreadCells &operator=(const ThreadCells &) = delete;
+    ~ThreadCells() { grid_.add_pass_time(thread_, omp_get_wtime() - start_, cost_); }
+    // The next range of cells, [first, last); false when none is left.
+    bool next(int &first, int &last) {
+        std::uint32_t c0 = 0, c1 = 0;
+        if (chunked_) {
+            if (!grid_.next_cells(thread_, c0, c1))
+                return false;
+        } else {
+            if (share_taken_)
+                return false;
+            share_taken_ = true;
+            const auto [a, b] = thread_cells(v_);
+            c0 = static_cast<std::uint32_t>(a);
+            c1 = static_cast<std::uint32_t>(b);
+        }
+        for (std::uint32_t c = c0; c < c1; ++c)
+            if (columns_.contains(static_cast<int>(c) / v_.rows))
+                cost_ += v_.cost[c + 1] - v_.cost[c];
+        first = static_cast<int>(c0);
+        last = static_cast<int>(c1);
+        return true;
+    }
 
 private:
     CellSorted &grid_;
+    const CellSorted::View &v_;
+    ColumnSet columns_;
+    int thread_;
+    bool chunked_, share_taken_ = false;
     double start_;
+    std::uint64_t cost_ = 0;
 };
 
 // Runs per_particle(sorted index, col, row, scratch) for every owned particle of the columns,
@@ -698,19 +786,20 @@ private:
 template <class F>
 void for_each_owned(CellSorted &grid, const CellSorted::View &v, ColumnSet columns,
                     F &&per_particle) {
+    grid.start_pass();
 #pragma omp parallel
     {
-        const PassTimer timer(grid);
         PackedCandidates scratch;
-        const auto [c0, c1] = thread_cells(v);
-        for (int cell = c0; cell < c1; ++cell) {
-            const int col = cell / v.rows, row = cell % v.rows;
-            if (!columns.contains(col))
-                continue;
-            for (std::size_t s = v.start[cell]; s < v.start[cell + 1]; ++s)
-                if (v.orig[s] < v.owned)
-                    per_particle(s, col, row, scratch);
-        }
+        ThreadCells cells(grid, v, columns);
+        for (int c0 = 0, c1 = 0; cells.next(c0, c1);)
+            for (int cell = c0; cell < c1; ++cell) {
+                const int col = cell / v.rows, row = cell % v.rows;
+                if (!columns.contains(col))
+                    continue;
+                for (std::size_t s = v.start[cell]; s < v.start[cell + 1]; ++s)
+                    if (v.orig[s] < v.owned)
+                        per_particle(s, col, row, scratch);
+            }
     }
 }
 } // namespace
@@ -725,55 +814,57 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
     std::uint64_t interactions = 0, remote = 0;
+    nb.grid->start_pass();
 #pragma omp parallel reduction(+ : interactions, remote)
     {
-        const PassTimer timer(*nb.grid);
         PackedCandidates nbr;
-        const auto [c0, c1] = thread_cells(v);
-        for (int cell = c0; cell < c1; ++cell) {
-            const int col = cell / v.rows, row = cell % v.rows;
-            if (!columns.contains(col))
-                continue;
-            for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
-                if (v.orig[i] >= v.owned)
+        ThreadCells cells(*nb.grid, v, columns);
+        for (int c0 = 0, c1 = 0; cells.next(c0, c1);)
+            for (int cell = c0; cell < c1; ++cell) {
+                const int col = cell / v.rows, row = cell % v.rows;
+                if (!columns.contains(col))
                     continue;
-                // A fluid particle interacts with every particle within 3h, itself included in
-                // the count (subtracted below; its own term is 0); a wall particle with fluid
-                // particles only, so not with itself.
-                const bool fluid_i = v.fluid[i] > 0;
-                if (fluid_i)
-                    pack_neighbourhood<Counted::remote, Partners::all>(v, col, row, i, r2max, nbr);
-                else
-                    pack_neighbourhood<Counted::remote, Partners::fluid>(v, col, row, i, r2max,
-                                                                         nbr);
-                const double vxi = v.vx[i], vyi = v.vy[i];
-                const std::uint32_t *idx = nbr.index.data();
-                const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-                PairSum drho;
-                for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
+                for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
+                    if (v.orig[i] >= v.owned)
+                        continue;
+                    // A fluid particle interacts with every particle within 3h, itself included in
+                    // the count (subtracted below; its own term is 0); a wall particle with fluid
+                    // particles only, so not with itself.
+                    const bool fluid_i = v.fluid[i] > 0;
+                    if (fluid_i)
+                        pack_neighbourhood<Counted::remote, Partners::all>(v, col, row, i, r2max,
+                                                                           nbr);
+                    else
+                        pack_neighbourhood<Counted::remote, Partners::fluid>(v, col, row, i, r2max,
+                                                                             nbr);
+                    const double vxi = v.vx[i], vyi = v.vy[i];
+                    const std::uint32_t *idx = nbr.index.data();
+                    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+                    PairSum drho;
+                    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
 #pragma omp simd
-                    for (int l = 0; l < pair_lanes; ++l) {
-                        const std::uint32_t j = idx[q + l];
-                        const double dx = sx[q + l], dy = sy[q + l];
-                        // 0 for the padding, which sits at distance 0 (coincident images have
-                        // no direction either, and are not packed).
-                        const double act = dx * dx + dy * dy > 0 ? 1.0 : 0.0;
-                        // Neighbours by the end of the step, the rate at separations `back`
-                        // earlier (physics.hpp continuity_term).
-                        const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
-                        const double mx = dx - back * dvx, my = dy - back * dvy;
-                        const double r =
-                            std::sqrt(mx * mx + my * my + tiny); // finite, masked below
-                        const double f =
-                            k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
-                        drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
+                        for (int l = 0; l < pair_lanes; ++l) {
+                            const std::uint32_t j = idx[q + l];
+                            const double dx = sx[q + l], dy = sy[q + l];
+                            // 0 for the padding, which sits at distance 0 (coincident images have
+                            // no direction either, and are not packed).
+                            const double act = dx * dx + dy * dy > 0 ? 1.0 : 0.0;
+                            // Neighbours by the end of the step, the rate at separations `back`
+                            // earlier (physics.hpp continuity_term).
+                            const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
+                            const double mx = dx - back * dvx, my = dy - back * dvy;
+                            const double r =
+                                std::sqrt(mx * mx + my * my + tiny); // finite, masked below
+                            const double f =
+                                k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
+                            drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
+                        }
                     }
+                    p.drho[v.orig[i]] = drho.total();
+                    interactions += nbr.in_range - (fluid_i ? 1 : 0);
+                    remote += nbr.remote;
                 }
-                p.drho[v.orig[i]] = drho.total();
-                interactions += nbr.in_range - (fluid_i ? 1 : 0);
-                remote += nbr.remote;
             }
-        }
     }
     return {interactions, remote};
 }

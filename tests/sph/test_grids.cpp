@@ -8,6 +8,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <numeric>
 #include <random>
@@ -500,8 +501,11 @@ TEST(CellSorted, ThreadBlocksFollowTheThreadsMeasuredSpeed) {
     g.update(p, window);
     std::vector<double> shares = block_shares();
     ASSERT_EQ(shares.size(), 3u);
-    for (int t = 0; t < 3; ++t)
-        g.add_pass_time(t, (t == 0 ? 4.0 : 1.0) * shares[static_cast<std::size_t>(t)]);
+    for (int t = 0; t < 3; ++t) {
+        const CellSorted::View v = g.view();
+        g.add_pass_time(t, (t == 0 ? 4.0 : 1.0) * shares[static_cast<std::size_t>(t)],
+                        v.cost[v.blocks[t + 1]] - v.cost[v.blocks[t]]);
+    }
     g.update(p, window);
     const std::vector<double> expected{1.0 / 9, 4.0 / 9, 4.0 / 9};
     for (int step = 0; step < 2; ++step) { // the second without timings
@@ -515,6 +519,56 @@ TEST(CellSorted, ThreadBlocksFollowTheThreadsMeasuredSpeed) {
     shares = block_shares();
     ASSERT_EQ(shares.size(), 2u);
     EXPECT_NEAR(shares[0], 0.5, 0.03);
+    omp_set_num_threads(threads_before);
+}
+
+// The pair passes' chunks: a thread takes its own block's front to back, then the other
+// blocks' from their back ends; every cell is handed out once, whoever takes it.
+TEST(CellSorted, ChunksHandOutEveryCellOnceOwnBlockFirst) {
+    const Particles p = random_configuration(7, 900, 120);
+    const int threads_before = omp_get_max_threads();
+    omp_set_num_threads(3);
+    CellSorted g;
+    g.update(p, window);
+    const CellSorted::View v = g.view();
+    ASSERT_EQ(v.threads, 3);
+    const auto cells = static_cast<std::uint32_t>(v.cols * v.rows);
+    g.start_pass();
+    std::vector<int> taken(cells, 0);
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> order;
+    std::uint32_t c0 = 0, c1 = 0;
+    while (g.next_cells(1, c0, c1)) { // thread 1 alone: its block, then the others'
+        order.emplace_back(c0, c1);
+        for (std::uint32_t c = c0; c < c1; ++c)
+            ++taken[c];
+    }
+    EXPECT_TRUE(std::all_of(taken.begin(), taken.end(), [](int n) { return n == 1; }));
+    ASSERT_EQ(order.size(), 3u * CellSorted::chunks_per_block);
+    EXPECT_EQ(order.front().first, v.blocks[1]);
+    EXPECT_EQ(order[CellSorted::chunks_per_block - 1].second, v.blocks[2]);
+    EXPECT_EQ(order[CellSorted::chunks_per_block].second, v.blocks[3]); // thread 2's last
+    // Each chunk of a block costs about 1 / chunks_per_block of it (whole cells).
+    std::uint64_t largest_cell = 0;
+    for (std::uint32_t c = 0; c < cells; ++c)
+        largest_cell = std::max(largest_cell, v.cost[c + 1] - v.cost[c]);
+    const std::uint64_t block = v.cost[v.blocks[2]] - v.cost[v.blocks[1]];
+    for (int k = 0; k < CellSorted::chunks_per_block; ++k) {
+        const auto [a, b] = order[static_cast<std::size_t>(k)];
+        EXPECT_LE(v.cost[b] - v.cost[a], block / CellSorted::chunks_per_block + largest_cell)
+            << "chunk " << k;
+    }
+    // Concurrently: every cell once over the team.
+    g.start_pass();
+    std::vector<std::atomic<int>> seen(cells);
+#pragma omp parallel
+    {
+        std::uint32_t a = 0, b = 0;
+        while (g.next_cells(omp_get_thread_num(), a, b))
+            for (std::uint32_t c = a; c < b; ++c)
+                seen[c].fetch_add(1, std::memory_order_relaxed);
+    }
+    for (std::uint32_t c = 0; c < cells; ++c)
+        EXPECT_EQ(seen[c].load(), 1) << "cell " << c;
     omp_set_num_threads(threads_before);
 }
 

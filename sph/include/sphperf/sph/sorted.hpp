@@ -16,8 +16,10 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <concepts>
 #include <cstdint>
+#include <memory>
 #include <new>
 #include <string_view>
 #include <utility>
@@ -56,6 +58,7 @@ public:
         std::size_t owned;                  // a sorted particle is owned when orig < owned
         const std::uint32_t *blocks;        // thread t's cells: [blocks[t], blocks[t + 1])
         int threads;                        // the team size the blocks were cut for
+        const std::uint64_t *cost;          // candidates examined in cells [0, c)
         const std::uint8_t *remote_columns; // 1 where a column holds particles not owned
         // Per column, rows + 1 entries: the fluid particles in its rows [0, r). A wall
         // particle's density pass skips the ranges without fluid (a dry wall: all of them).
@@ -100,14 +103,28 @@ public:
     // The same for the ghost positions only (their density came after the others').
     void refresh_ghost_density(const Particles &p);
     View view() const;
-    // A thread's seconds in a pass over its block (inside the parallel region; each thread
-    // writes its own entry): the next cut_blocks gives the threads shares of the cost by how
-    // fast they got through it. Another team size than the blocks' is not booked.
-    void add_pass_time(int thread, double seconds) {
+    // A thread's seconds in a pair pass and the cost (candidates examined) of the cells it
+    // went through (inside the parallel region; each thread writes its own entry): the next
+    // cut_blocks gives the threads shares of the cost by how fast they got through it.
+    // Another team size than the blocks' is not booked.
+    void add_pass_time(int thread, double seconds, std::uint64_t cost) {
         if (static_cast<std::size_t>(thread) < pass_time_.size() &&
-            pass_time_.size() == static_cast<std::size_t>(threads_))
+            pass_time_.size() == static_cast<std::size_t>(threads_)) {
             pass_time_[static_cast<std::size_t>(thread)].seconds += seconds;
+            pass_time_[static_cast<std::size_t>(thread)].cost += static_cast<double>(cost);
+        }
     }
+    // The pair passes' cells, handed out in chunks: each thread's block is cut into
+    // `chunks_per_block` chunks of equal cost; a thread takes its own block's from the front,
+    // then, once they are gone, the other threads' from their back ends. The cut by measured
+    // speed is right on average, but the two vCPUs' speeds change within a step: the slower
+    // thread took 6-8 % longer than the mean of the two over a dam break's passes
+    // (sph/NOTES.md, session 62). start_pass() before each pass's parallel region; then
+    // next_cells(thread, first, last) gives [first, last) and false when no chunk is left
+    // (only with the team size the blocks were cut for).
+    static constexpr int chunks_per_block = 32;
+    void start_pass();
+    bool next_cells(int thread, std::uint32_t &first, std::uint32_t &last);
 
 private:
     int first_sorted_cell(int window_cell) const {
@@ -139,11 +156,19 @@ private:
     // Weight of the latest step in the smoothed seconds per unit of cost.
     static constexpr double speed_smoothing = 0.1;
     struct alignas(64) PassTime { // one cache line each: the threads write them concurrently
-        double seconds = 0;
+        double seconds = 0, cost = 0;
     };
-    std::vector<PassTime> pass_time_;       // this step's, per thread
-    std::vector<std::uint64_t> block_cost_; // the cost of each thread's block
-    std::vector<double> seconds_per_cost_;  // smoothed, per thread
+    std::vector<PassTime> pass_time_; // this step's, per thread
+    // Chunk c of thread t's block: cells [chunk_bounds_[k], chunk_bounds_[k + 1]), k = t x
+    // chunks_per_block + c. A thread's queue packs its first chunk not taken (low 32 bits) and
+    // its end (high 32 bits): the owner advances the first, a thief lowers the end.
+    std::vector<std::uint32_t> chunk_bounds_;
+    struct alignas(64) ChunkQueue { // one cache line each: mostly its owner's
+        std::atomic<std::uint64_t> range{0};
+    };
+    std::unique_ptr<ChunkQueue[]> queues_;
+    int queue_count_ = 0;
+    std::vector<double> seconds_per_cost_; // smoothed, per thread
     // This thread's sorted positions (inside a parallel region): those of its block's cells.
     std::pair<std::size_t, std::size_t> thread_positions() const;
     CellWindow window_;
