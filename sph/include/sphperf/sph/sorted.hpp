@@ -143,11 +143,12 @@ private:
                      std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out);
     void sort_cells_by_id(const Particles &p, std::size_t first_cell, std::size_t last_cell);
     // Cuts the cells into one contiguous block per thread, of equal candidates examined (the
-    // particles of a cell times the candidates in the ranges around it): every pass gives a
-    // thread the same block, so it reads what it wrote and the threads share only the cells at
-    // the cut. A dynamic schedule pays an inter-core round trip per chunk and moves the data
-    // between cores every pass; this VM's inter-core latency switches between about 80 and
-    // 350 ns (sph/NOTES.md).
+    // particles of a cell times the candidates in the ranges around it) weighted by the
+    // threads' speeds, and each block into its chunks: every pass gives a thread the same
+    // block, so it reads what it wrote and the threads share only the cells at the cut and
+    // the few chunks taken at a pass's end. A dynamic schedule pays an inter-core round trip
+    // per chunk and moves the data between cores every pass; this VM's inter-core latency
+    // switches between about 80 and 350 ns (sph/NOTES.md).
     void cut_blocks();
     // Each thread's share of the cost for cut_blocks: equal, or by the threads' measured
     // seconds per unit of cost (add_pass_time) at this team size. The bits of every result do
