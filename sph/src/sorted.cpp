@@ -115,11 +115,11 @@ void CellSorted::cut_blocks() {
         for (int c = 1; c < chunks_per_block; ++c) {
             const std::uint64_t target = c0 + (c1 - c0) * static_cast<std::uint64_t>(c) /
                                                   static_cast<std::uint64_t>(chunks_per_block);
-            // Within the block (cost_ is flat over empty cells: the first cell reaching it).
-            chunk_bounds_[k0 + static_cast<std::size_t>(c)] = std::clamp(
-                static_cast<std::uint32_t>(std::lower_bound(cost_.begin(), cost_.end(), target) -
-                                           cost_.begin()),
-                blocks_[t], blocks_[t + 1]);
+            // The block's first cell whose prefix reaches it (searched within the block:
+            // cost_ is flat over empty cells, also before the block's start).
+            const auto b0 = cost_.begin() + blocks_[t], b1 = cost_.begin() + blocks_[t + 1];
+            chunk_bounds_[k0 + static_cast<std::size_t>(c)] =
+                static_cast<std::uint32_t>(std::lower_bound(b0, b1, target) - cost_.begin());
         }
     }
     chunk_bounds_.back() = blocks_[static_cast<std::size_t>(threads)];
