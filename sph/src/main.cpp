@@ -167,6 +167,8 @@ Config parse(int argc, char **argv) {
 // particle at this support, thesis and measured; the model is within 5-9 % of measured peak
 // RSS, 172 B per particle measured against 181 counted for 7.2e7 particles on the sorted grid).
 // Walls, ghosts and the fixed part come on top.
+static_assert(sph::pair_records == (model::sorted_record_bytes > 0),
+              "the memory model counts Cell+Sorted's pair records where sph builds them");
 void check_memory(const Config &cfg, const Geometry &geo, int ranks_here, int ranks) {
     constexpr double neighbours = 45.6;
     const auto counts = model::memory_counts(to_string(cfg.grid));

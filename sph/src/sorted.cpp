@@ -222,6 +222,10 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
             y_[s] = p.y[i];
             vx_[s] = p.vx[i];
             vy_[s] = p.vy[i];
+            if constexpr (pair_records) {
+                records_[record_size * s] = p.vx[i];
+                records_[record_size * s + 1] = p.vy[i];
+            }
             mass_[s] = p.mass[i];
             fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
             remote_[s] = i < owned_ ? 0.0 : 1.0;
@@ -334,6 +338,8 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     sort_cells_by_id(p, 0, cells);
     for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
         v->resize(n + west + east);
+    if constexpr (pair_records)
+        records_.resize(record_size * (n + west + east));
     copy_fields(p, west, west + n, 0, cols_);
     moves_ = n + west + east; // every particle is filed anew each step
     // Density and pressure are copied by refresh_density once they are final for the pass
@@ -389,22 +395,25 @@ void CellSorted::refresh_density(const Particles &p) {
 #pragma omp parallel
     {
         const auto [s0, s1] = thread_positions();
-        for (std::size_t s = s0; s < s1; ++s) {
-            const double rho = p.rho[orig_[s]];
-            rho_[s] = rho;
-            p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
-        }
+        refresh_density(p, s0, s1);
     }
 }
 
 void CellSorted::refresh_ghost_density(const Particles &p) {
-    for (const auto &[from, to] :
-         {std::pair{std::size_t{0}, west_}, std::pair{west_ + local_, west_ + local_ + east_}})
-        for (std::size_t s = from; s < to; ++s) {
-            const double rho = p.rho[orig_[s]];
-            rho_[s] = rho;
-            p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
+    refresh_density(p, 0, west_);
+    refresh_density(p, west_ + local_, west_ + local_ + east_);
+}
+
+void CellSorted::refresh_density(const Particles &p, std::size_t from, std::size_t to) {
+    for (std::size_t s = from; s < to; ++s) {
+        const double rho = p.rho[orig_[s]];
+        rho_[s] = rho;
+        p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
+        if constexpr (pair_records) {
+            records_[record_size * s + 2] = rho;
+            records_[record_size * s + 3] = p_over_rho2_[s];
         }
+    }
 }
 
 CellSorted::View CellSorted::view() const {
@@ -417,6 +426,7 @@ CellSorted::View CellSorted::view() const {
             mass_.data(),
             fluid_.data(),
             remote_.data(),
+            pair_records ? records_.data() : nullptr,
             orig_.data(),
             start_.data(),
             cols_,
@@ -726,6 +736,187 @@ void pack_in_range(const CellSorted::View &v, double xi, double yi, double r2max
 
 namespace {
 
+// The pair terms, written once for one lane (T = double: the compiler vectorises the 16-lane
+// loops) and for four (T = Lanes4: the AVX2 loops). Every lane computes finite terms, and the
+// padding and coincident images (separation 0) are multiplied by 0.
+[[gnu::always_inline]] inline double lane_sqrt(double x) {
+    return std::sqrt(x);
+}
+[[gnu::always_inline]] inline double lane_min0(double x) {
+    return std::min(x, 0.0);
+}
+#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+// A GCC vector (arithmetic, comparisons and ?: work on it), __m256d without its may_alias.
+using Lanes4 = double __attribute__((vector_size(32)));
+[[gnu::always_inline]] inline Lanes4 lane_sqrt(Lanes4 x) {
+    return _mm256_sqrt_pd(x);
+}
+[[gnu::always_inline]] inline Lanes4 lane_min0(Lanes4 x) {
+    return _mm256_min_pd(x, _mm256_setzero_pd());
+}
+#endif
+
+// Continuity: m_j W'(r) / r (v_ij . r_ij), at the separation `back` earlier (physics.hpp
+// continuity_term): neighbours by the end of the step, the rate at the step's middle.
+template <class T>
+[[gnu::always_inline]] inline T density_rate_term(const BranchFreeKernel &k, double back, T dx,
+                                                  T dy, T dvx, T dvy, T mj) {
+    const T zero{}, one = zero + 1.0;
+    const T act = dx * dx + dy * dy > zero ? one : zero; // 0 for the padding
+    const T mx = dx - back * dvx, my = dy - back * dvy;
+    const T r = lane_sqrt(mx * mx + my * my + tiny); // finite, masked
+    const T f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
+    return act * (mj * f * (dvx * mx + dvy * my));
+}
+
+// Particle i's side of the force pass.
+struct ForceParticle {
+    double vx, vy, rho, p_over_rho2;
+};
+struct ForceConstants {
+    BranchFreeKernel k;
+    double eta2, visc_coef; // 0.01 h^2; -2 alpha c0 h
+};
+template <class T> struct Force { T x, y; };
+
+// Pressure and Monaghan's viscosity: -m_j (P_i / rho_i^2 + P_j / rho_j^2 + Pi_ij) grad W.
+template <class T>
+[[gnu::always_inline]] inline Force<T> force_term(const ForceConstants &c, const ForceParticle &i,
+                                                  T dx, T dy, T vxj, T vyj, T rhoj, T prj, T mj) {
+    const T zero{}, one = zero + 1.0;
+    const T d2 = dx * dx + dy * dy;
+    // 0 for the padding, at distance 0. A multiplied mask, not a select: GCC turns the select
+    // into a conditional store in the 16-lane loop, which does not vectorise; every term is
+    // finite, so 0 x term adds nothing.
+    const T mask = d2 > zero ? one : zero;
+    const T r = lane_sqrt(d2 + tiny);
+    const T vdotr = (i.vx - vxj) * dx + (i.vy - vyj) * dy;
+    // One division for three quotients, 1/r, 1/(r^2 + eta^2) and 1/(rho_i + rho_j): divisions
+    // and the square root are what this loop waits on.
+    const T dv = (d2 + c.eta2) * (i.rho + rhoj);
+    const T inv = 1.0 / (r * dv);
+    // Monaghan's viscosity for approaching pairs only (vdotr < 0): clamping vdotr rather than
+    // branching keeps the loop branch-free; receding pairs get 0.
+    const T visc = c.visc_coef * lane_min0(vdotr) * (r * inv);
+    const T f = c.k.alpha_d_over_h * BranchFreeKernel::slope(r * c.k.inv_h) * (dv * inv);
+    const T coef = mj * (i.p_over_rho2 + prj + visc);
+    return {mask * (-coef * f * dx), mask * (-coef * f * dy)};
+}
+
+// The sums of one particle over its packed candidates, lane l of the 16 taking positions
+// q + l: the same lanes in either build, so the same sums to the rounding of the arithmetic.
+// The AVX2 loops keep the sums in registers, four vectors of four lanes.
+#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+// Four neighbours' vx, vy, rho and P / rho^2 from their records (View::records): four
+// 32-byte loads and a 4 x 4 transpose, where GCC's gathers take a load and a shuffle a lane.
+struct Neighbours4 {
+    Lanes4 vx, vy, rho, p_over_rho2;
+};
+[[gnu::always_inline]] inline Neighbours4 load_records(const double *records,
+                                                       const std::uint32_t *j) {
+    const Lanes4 r0 = _mm256_load_pd(records + 4 * std::size_t{j[0]}),
+                 r1 = _mm256_load_pd(records + 4 * std::size_t{j[1]}),
+                 r2 = _mm256_load_pd(records + 4 * std::size_t{j[2]}),
+                 r3 = _mm256_load_pd(records + 4 * std::size_t{j[3]});
+    const Lanes4 lo01 = _mm256_unpacklo_pd(r0, r1), hi01 = _mm256_unpackhi_pd(r0, r1),
+                 lo23 = _mm256_unpacklo_pd(r2, r3), hi23 = _mm256_unpackhi_pd(r2, r3);
+    return {_mm256_permute2f128_pd(lo01, lo23, 0x20), _mm256_permute2f128_pd(hi01, hi23, 0x20),
+            _mm256_permute2f128_pd(lo01, lo23, 0x31), _mm256_permute2f128_pd(hi01, hi23, 0x31)};
+}
+[[gnu::always_inline]] inline Lanes4 gather4(const double *a, const std::uint32_t *j) {
+    return _mm256_setr_pd(a[j[0]], a[j[1]], a[j[2]], a[j[3]]);
+}
+
+[[gnu::always_inline]] inline double density_rate_sum(const CellSorted::View &v,
+                                                      const PackedCandidates &nbr,
+                                                      const BranchFreeKernel &k, double back,
+                                                      double vxi, double vyi) {
+    const std::uint32_t *idx = nbr.index.data();
+    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    PairSum drho;
+    constexpr int groups = pair_lanes / 4;
+    Lanes4 sum[groups] = {};
+    const Lanes4 vxi4 = _mm256_set1_pd(vxi), vyi4 = _mm256_set1_pd(vyi);
+    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes)
+#pragma GCC unroll 4 // the groups interleaved: rolled, this lost to the compiler (session 63)
+        for (int g = 0; g < groups; ++g) {
+            const std::uint32_t *j = idx + q + 4 * g;
+            const Neighbours4 n = load_records(v.records, j);
+            sum[g] += density_rate_term(k, back, _mm256_load_pd(sx + q + 4 * g),
+                                        _mm256_load_pd(sy + q + 4 * g), vxi4 - n.vx, vyi4 - n.vy,
+                                        gather4(v.mass, j));
+        }
+    for (int g = 0; g < groups; ++g)
+        _mm256_storeu_pd(drho.v + 4 * g, sum[g]);
+    return drho.total();
+}
+
+[[gnu::always_inline]] inline Force<double> force_sum(const CellSorted::View &v,
+                                                      const PackedCandidates &nbr,
+                                                      const ForceConstants &c,
+                                                      const ForceParticle &i) {
+    const std::uint32_t *idx = nbr.index.data();
+    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    PairSum ax, ay;
+    constexpr int groups = pair_lanes / 4;
+    Lanes4 sum_x[groups] = {}, sum_y[groups] = {};
+    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes)
+#pragma GCC unroll 4 // the groups interleaved: rolled, this lost to the compiler (session 63)
+        for (int g = 0; g < groups; ++g) {
+            const std::uint32_t *j = idx + q + 4 * g;
+            const Neighbours4 n = load_records(v.records, j);
+            const Force<Lanes4> a =
+                force_term(c, i, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g),
+                           n.vx, n.vy, n.rho, n.p_over_rho2, gather4(v.mass, j));
+            sum_x[g] += a.x;
+            sum_y[g] += a.y;
+        }
+    for (int g = 0; g < groups; ++g) {
+        _mm256_storeu_pd(ax.v + 4 * g, sum_x[g]);
+        _mm256_storeu_pd(ay.v + 4 * g, sum_y[g]);
+    }
+    return {ax.total(), ay.total()};
+}
+#else
+[[gnu::always_inline]] inline double density_rate_sum(const CellSorted::View &v,
+                                                      const PackedCandidates &nbr,
+                                                      const BranchFreeKernel &k, double back,
+                                                      double vxi, double vyi) {
+    const std::uint32_t *idx = nbr.index.data();
+    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    PairSum drho;
+    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
+#pragma omp simd
+        for (int l = 0; l < pair_lanes; ++l) {
+            const std::uint32_t j = idx[q + l];
+            drho.v[l] += density_rate_term(k, back, sx[q + l], sy[q + l], vxi - v.vx[j],
+                                           vyi - v.vy[j], v.mass[j]);
+        }
+    }
+    return drho.total();
+}
+
+[[gnu::always_inline]] inline Force<double> force_sum(const CellSorted::View &v,
+                                                      const PackedCandidates &nbr,
+                                                      const ForceConstants &c,
+                                                      const ForceParticle &i) {
+    const std::uint32_t *idx = nbr.index.data();
+    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    PairSum ax, ay;
+    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
+#pragma omp simd
+        for (int l = 0; l < pair_lanes; ++l) {
+            const std::uint32_t j = idx[q + l];
+            const Force<double> a = force_term(c, i, sx[q + l], sy[q + l], v.vx[j], v.vy[j],
+                                               v.rho[j], v.p_over_rho2[j], v.mass[j]);
+            ax.v[l] += a.x;
+            ay.v[l] += a.y;
+        }
+    }
+    return {ax.total(), ay.total()};
+}
+#endif
+
 // This thread's cells of the view (inside a parallel region).
 std::pair<int, int> thread_cells(const CellSorted::View &v) {
     const auto [c0, c1] =
@@ -837,30 +1028,7 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                     else
                         pack_neighbourhood<Counted::remote, Partners::fluid>(v, col, row, i, r2max,
                                                                              nbr);
-                    const double vxi = v.vx[i], vyi = v.vy[i];
-                    const std::uint32_t *idx = nbr.index.data();
-                    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-                    PairSum drho;
-                    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
-#pragma omp simd
-                        for (int l = 0; l < pair_lanes; ++l) {
-                            const std::uint32_t j = idx[q + l];
-                            const double dx = sx[q + l], dy = sy[q + l];
-                            // 0 for the padding, which sits at distance 0 (coincident images have
-                            // no direction either, and are not packed).
-                            const double act = dx * dx + dy * dy > 0 ? 1.0 : 0.0;
-                            // Neighbours by the end of the step, the rate at separations `back`
-                            // earlier (physics.hpp continuity_term).
-                            const double dvx = vxi - v.vx[j], dvy = vyi - v.vy[j];
-                            const double mx = dx - back * dvx, my = dy - back * dvy;
-                            const double r =
-                                std::sqrt(mx * mx + my * my + tiny); // finite, masked below
-                            const double f =
-                                k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
-                            drho.v[l] += act * (v.mass[j] * f * (dvx * mx + dvy * my));
-                        }
-                    }
-                    p.drho[v.orig[i]] = drho.total();
+                    p.drho[v.orig[i]] = density_rate_sum(v, nbr, k, back, v.vx[i], v.vy[i]);
                     interactions += nbr.in_range - (fluid_i ? 1 : 0);
                     remote += nbr.remote;
                 }
@@ -878,7 +1046,7 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
-    const double h = k.h, eta2 = 0.01 * h * h, visc_coef = -2 * phys.alpha * phys.c0 * h;
+    const ForceConstants c{k, 0.01 * k.h * k.h, -2 * phys.alpha * phys.c0 * k.h};
     for_each_owned(*nb.grid, v, columns,
                    [&](std::size_t i, int col, int row, PackedCandidates &nbr) {
                        const std::uint32_t oi = v.orig[i];
@@ -889,41 +1057,10 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
                        }
                        // i is fluid: every j interacts.
                        pack_neighbourhood<Counted::no, Partners::all>(v, col, row, i, r2max, nbr);
-                       const double vxi = v.vx[i], vyi = v.vy[i];
-                       const double rhoi = v.rho[i], pri = v.p_over_rho2[i];
-                       const std::uint32_t *idx = nbr.index.data();
-                       const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-                       PairSum ax, ay;
-                       for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
-#pragma omp simd
-                           for (int l = 0; l < pair_lanes; ++l) {
-                               const std::uint32_t j = idx[q + l];
-                               const double dx = sx[q + l], dy = sy[q + l];
-                               const double d2 = dx * dx + dy * dy;
-                               // 0 for the padding, at distance 0. A multiplied mask, not a select:
-                               // GCC turns the select into a conditional store here, which does not
-                               // vectorise; every term is finite, so 0 x term adds nothing.
-                               const double mask = d2 > 0 ? 1.0 : 0.0;
-                               const double r = std::sqrt(d2 + tiny);
-                               const double vdotr = (vxi - v.vx[j]) * dx + (vyi - v.vy[j]) * dy;
-                               // One division for three quotients, 1/r, 1/(r^2 + eta^2) and
-                               // 1/(rho_i + rho_j): divisions and the square root are what this
-                               // loop waits on.
-                               const double dv = (d2 + eta2) * (rhoi + v.rho[j]);
-                               const double inv = 1.0 / (r * dv);
-                               // Monaghan's viscosity for approaching pairs only (vdotr < 0):
-                               // clamping vdotr rather than branching keeps the loop branch-free;
-                               // receding pairs get 0.
-                               const double visc = visc_coef * std::min(vdotr, 0.0) * (r * inv);
-                               const double f = k.alpha_d_over_h *
-                                                BranchFreeKernel::slope(r * k.inv_h) * (dv * inv);
-                               const double coef = v.mass[j] * (pri + v.p_over_rho2[j] + visc);
-                               ax.v[l] += mask * (-coef * f * dx);
-                               ay.v[l] += mask * (-coef * f * dy);
-                           }
-                       }
-                       p.ax[oi] = ax.total();
-                       p.ay[oi] = ay.total() - phys.gravity;
+                       const Force<double> a =
+                           force_sum(v, nbr, c, {v.vx[i], v.vy[i], v.rho[i], v.p_over_rho2[i]});
+                       p.ax[oi] = a.x;
+                       p.ay[oi] = a.y - phys.gravity;
                    });
 }
 

@@ -13,7 +13,15 @@ constexpr double bytes_per_interaction = 4 + 2 * 4 + 4;
 // Cell+Sorted stores no pairs and no list offsets, but a cell-ordered copy of every particle:
 // x, y, vx, vy, rho, P/rho^2, mass, fluid and remote flags (9 doubles), original index and
 // cell key.
-constexpr double sorted_bytes_per_particle = bytes_per_particle - 4 + 9 * 8 + 4 + 4;
+// Where sph builds its AVX2 pair loops (sph/sorted.hpp pair_records, the same condition; sph
+// checks the two agree), vx, vy, rho and P/rho^2 once more as a 32-byte record.
+#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+constexpr double sorted_record_bytes = 4 * 8;
+#else
+constexpr double sorted_record_bytes = 0;
+#endif
+constexpr double sorted_bytes_per_particle =
+    bytes_per_particle - 4 + 9 * 8 + 4 + 4 + sorted_record_bytes;
 
 struct MemoryCounts {
     double per_particle, per_interaction;

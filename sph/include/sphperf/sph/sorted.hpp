@@ -38,6 +38,33 @@ struct ColumnSet {
     ColumnSet complement() const { return {first, last, !outside}; }
 };
 
+// Cache-line aligned storage for the packed candidates: the pair loops read them in whole
+// 64-byte vectors, and from a 16-byte aligned heap block every such load splits two cache lines
+// (measured: the packing's 9 % gain gone when mpirun's environment shifted the heap).
+template <class T> struct CacheLineAllocator {
+    using value_type = T;
+    CacheLineAllocator() = default;
+    template <class U> CacheLineAllocator(const CacheLineAllocator<U> &) {}
+    T *allocate(std::size_t n) {
+        return static_cast<T *>(::operator new (n * sizeof(T), std::align_val_t{64}));
+    }
+    void deallocate(T *p, std::size_t) { ::operator delete (p, std::align_val_t{64}); }
+    friend bool operator==(const CacheLineAllocator &, const CacheLineAllocator &) { return true; }
+};
+
+// Where the build has AVX2 but not AVX-512 the pair loops are written for 4-lane vectors
+// (sorted.cpp, the same pair terms as the compiler's 16-lane loops) and read a neighbour's vx,
+// vy, rho and P / rho^2 as one 32-byte record, `View::records`, four of them transposed into
+// four vectors: GCC emulates a gather with a scalar load and a shuffle a lane, and the force
+// pass gathers five fields a pair. On the Zen 3 host of session 63 (dam break, scale 1) this
+// took 13 % off the compute at 1 thread and 12 % at 2 (sph/NOTES.md, session 63). AVX-512
+// builds keep the compiler's loops, measured faster on those hosts.
+#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+inline constexpr bool pair_records = true;
+#else
+inline constexpr bool pair_records = false;
+#endif
+
 class CellSorted {
 public:
     static constexpr std::string_view name = "sorted";
@@ -52,8 +79,11 @@ public:
     struct View {
         const double *x, *y, *vx, *vy, *rho, *p_over_rho2, *mass;
         const double *fluid, *remote; // 1 or 0: a fluid particle; not owned by this rank
-        const std::uint32_t *orig;    // sorted position -> index in Particles
-        const std::uint32_t *start;   // cell -> first sorted position; start[cells] = size
+        // With pair_records: per sorted position vx, vy, rho, P / rho^2, 32-byte aligned
+        // (rho and P / rho^2 as refresh_density left them); else null.
+        const double *records;
+        const std::uint32_t *orig;  // sorted position -> index in Particles
+        const std::uint32_t *start; // cell -> first sorted position; start[cells] = size
         int cols, rows;
         std::size_t owned;                  // a sorted particle is owned when orig < owned
         const std::uint32_t *blocks;        // thread t's cells: [blocks[t], blocks[t + 1])
@@ -137,6 +167,8 @@ private:
     // partners in the columns holding some only, and a wall particle looks at fluid only.
     void copy_fields(const Particles &p, std::size_t from, std::size_t to, int first_column,
                      int last_column);
+    // refresh_density's copy of sorted positions [from, to).
+    void refresh_density(const Particles &p, std::size_t from, std::size_t to);
     // Stable counting sort of [first, last) by key_: starts[c] becomes the first position of
     // cell c (cells + 1 entries, counted from `base`), out[starts[c]...] its indices in order.
     void sort_by_key(std::size_t first, std::size_t last, std::size_t base,
@@ -175,6 +207,8 @@ private:
     CellWindow window_;
     std::size_t west_ = 0, east_ = 0, local_ = 0; // ghost slots kept, particles sorted
     std::vector<double> x_, y_, vx_, vy_, rho_, p_over_rho2_, mass_, fluid_, remote_;
+    static constexpr std::size_t record_size = 4; // View::records' doubles per position
+    std::vector<double, CacheLineAllocator<double>> records_;
     std::vector<std::uint32_t> orig_, start_, key_, blocks_;
     std::vector<std::uint32_t> fill_;        // sort_by_key's next position per cell
     std::vector<std::size_t> block_sizes_;   // sort_by_key's particles per block
@@ -202,7 +236,13 @@ struct BranchFreeKernel {
     double h, inv_h, alpha_d, alpha_d_over_h;
     explicit BranchFreeKernel(const QuinticKernel &k)
         : h(k.h), inv_h(1.0 / k.h), alpha_d(k.alpha_d), alpha_d_over_h(k.alpha_d / k.h) {}
-    static double pos(double v) { return std::max(v, 0.0); }
+    // T: double, or a GCC vector of doubles (the AVX2 pair loops, sorted.cpp).
+    // max(v, 0) in the form of the max instructions (v > 0 ? v : 0), which GCC emits for
+    // vectors too: `v < 0 ? 0 : v` became a compare and a mask (sph/NOTES.md, session 63).
+    template <class T> static T pos(T v) {
+        const T zero{};
+        return v > zero ? v : zero;
+    }
     // W / alpha_d and its slope d(W / alpha_d)/dq.
     static double shape(double q) {
         const double a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
@@ -211,12 +251,15 @@ struct BranchFreeKernel {
         w += 15 * (c * c * c * c * c);
         return w;
     }
-    static double slope(double q) {
-        const double a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
-        double d = 0;
-        d -= 5 * (a * a * a * a);
-        d += 30 * (b * b * b * b);
-        d -= 75 * (c * c * c * c);
+    template <class T> static T slope(T q) {
+        const T a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
+        // Fourth powers as squares of squares: two multiplications deep, not three (the pair
+        // loops wait on this chain).
+        const T a2 = a * a, b2 = b * b, c2 = c * c;
+        T d{};
+        d -= 5 * (a2 * a2);
+        d += 30 * (b2 * b2);
+        d -= 75 * (c2 * c2);
         return d;
     }
     double value(double r) const { return alpha_d * shape(r * inv_h); }
@@ -238,20 +281,6 @@ concept OverlapGrid = requires(G g, const G cg, const Particles &p, const CellWi
     g.refresh_density(p);
     g.refresh_ghost_density(p);
     { cg.columns_without_ghosts() } -> std::same_as<ColumnSet>;
-};
-
-// Cache-line aligned storage for the packed candidates: the pair loops read them in whole
-// 64-byte vectors, and from a 16-byte aligned heap block every such load splits two cache lines
-// (measured: the packing's 9 % gain gone when mpirun's environment shifted the heap).
-template <class T> struct CacheLineAllocator {
-    using value_type = T;
-    CacheLineAllocator() = default;
-    template <class U> CacheLineAllocator(const CacheLineAllocator<U> &) {}
-    T *allocate(std::size_t n) {
-        return static_cast<T *>(::operator new (n * sizeof(T), std::align_val_t{64}));
-    }
-    void deallocate(T *p, std::size_t) { ::operator delete (p, std::align_val_t{64}); }
-    friend bool operator==(const CacheLineAllocator &, const CacheLineAllocator &) { return true; }
 };
 
 // One particle's candidates within the support, packed in candidate order (columns west to
