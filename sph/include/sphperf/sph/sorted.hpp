@@ -38,9 +38,9 @@ struct ColumnSet {
     ColumnSet complement() const { return {first, last, !outside}; }
 };
 
-// Cache-line aligned storage for the packed candidates: the pair loops read them in whole
-// 64-byte vectors, and from a 16-byte aligned heap block every such load splits two cache lines
-// (measured: the packing's 9 % gain gone when mpirun's environment shifted the heap).
+// Cache-line aligned storage for the packed candidates and the pair records: the pair loops
+// read them in whole vectors, and from a 16-byte aligned heap block every such load splits two
+// cache lines (measured: the packing's 9 % gain gone when mpirun's environment shifted the heap).
 template <class T> struct CacheLineAllocator {
     using value_type = T;
     CacheLineAllocator() = default;
