@@ -803,9 +803,6 @@ template <class T>
     return {mask * (-coef * f * dx), mask * (-coef * f * dy)};
 }
 
-// The sums of one particle over its packed candidates, lane l of the 16 taking positions
-// q + l: the same lanes in either build, so the same sums to the rounding of the arithmetic.
-// The AVX2 loops keep the sums in registers, four vectors of four lanes.
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
 // Four neighbours' vx, vy, rho and P / rho^2 from their records (View::records): four
 // 32-byte loads and a 4 x 4 transpose, where GCC's gathers take a load and a shuffle a lane.
@@ -827,6 +824,11 @@ struct Neighbours4 {
     return _mm256_setr_pd(a[j[0]], a[j[1]], a[j[2]], a[j[3]]);
 }
 
+#endif
+
+// The sums of one particle over its packed candidates, lane l of the 16 taking positions
+// q + l: the same lanes in either build, so the same sums to the rounding of the arithmetic.
+// The AVX2 loops keep the sums in registers, four vectors of four lanes.
 [[gnu::always_inline]] inline double density_rate_sum(const CellSorted::View &v,
                                                       const PackedCandidates &nbr,
                                                       const BranchFreeKernel &k, double back,
@@ -834,6 +836,7 @@ struct Neighbours4 {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
     PairSum drho;
+#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum[groups] = {};
     const Lanes4 vxi4 = _mm256_set1_pd(vxi), vyi4 = _mm256_set1_pd(vyi);
@@ -848,6 +851,16 @@ struct Neighbours4 {
         }
     for (int g = 0; g < groups; ++g)
         _mm256_storeu_pd(drho.v + 4 * g, sum[g]);
+#else
+    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
+#pragma omp simd
+        for (int l = 0; l < pair_lanes; ++l) {
+            const std::uint32_t j = idx[q + l];
+            drho.v[l] += density_rate_term(k, back, sx[q + l], sy[q + l], vxi - v.vx[j],
+                                           vyi - v.vy[j], v.mass[j]);
+        }
+    }
+#endif
     return drho.total();
 }
 
@@ -858,6 +871,7 @@ struct Neighbours4 {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
     PairSum ax, ay;
+#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum_x[groups] = {}, sum_y[groups] = {};
     for (std::size_t q = 0; q < nbr.padded; q += pair_lanes)
@@ -875,34 +889,7 @@ struct Neighbours4 {
         _mm256_storeu_pd(ax.v + 4 * g, sum_x[g]);
         _mm256_storeu_pd(ay.v + 4 * g, sum_y[g]);
     }
-    return {ax.total(), ay.total()};
-}
 #else
-[[gnu::always_inline]] inline double density_rate_sum(const CellSorted::View &v,
-                                                      const PackedCandidates &nbr,
-                                                      const BranchFreeKernel &k, double back,
-                                                      double vxi, double vyi) {
-    const std::uint32_t *idx = nbr.index.data();
-    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-    PairSum drho;
-    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
-#pragma omp simd
-        for (int l = 0; l < pair_lanes; ++l) {
-            const std::uint32_t j = idx[q + l];
-            drho.v[l] += density_rate_term(k, back, sx[q + l], sy[q + l], vxi - v.vx[j],
-                                           vyi - v.vy[j], v.mass[j]);
-        }
-    }
-    return drho.total();
-}
-
-[[gnu::always_inline]] inline Force<double> force_sum(const CellSorted::View &v,
-                                                      const PackedCandidates &nbr,
-                                                      const ForceConstants &c,
-                                                      const ForceParticle &i) {
-    const std::uint32_t *idx = nbr.index.data();
-    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-    PairSum ax, ay;
     for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
 #pragma omp simd
         for (int l = 0; l < pair_lanes; ++l) {
@@ -913,9 +900,9 @@ struct Neighbours4 {
             ay.v[l] += a.y;
         }
     }
+#endif
     return {ax.total(), ay.total()};
 }
-#endif
 
 // This thread's cells of the view (inside a parallel region).
 std::pair<int, int> thread_cells(const CellSorted::View &v) {
