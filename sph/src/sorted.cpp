@@ -543,27 +543,31 @@ std::uint64_t lane_sum(__m512i v) {
 #endif
 
 #if !(defined(__AVX512F__) && defined(__AVX512VL__)) && defined(__AVX2__) && defined(__FMA__)
-// The tables of the AVX2 packing, by the 4-bit mask of the lanes kept: the kept lanes' numbers
-// in order (then zeros), the 32-bit halves of the kept doubles in order for
-// _mm256_permutevar8x32_ps, and the load masks of a tail of 0-4 lanes.
+// The tables of the AVX2 packing, by the 4-bit mask of the lanes kept: the 32-bit halves of
+// the kept doubles in order for _mm256_permutevar8x32_ps and the kept lanes' numbers in order
+// (then zeros), side by side so that one address reaches both; and the load masks of a tail of
+// 0-4 lanes.
+struct alignas(64) Compress4Entry {
+    __m256i doubles;
+    __m128i lanes;
+};
 struct Compress4 {
-    __m128i lanes[16];
-    __m256i doubles[16];
+    Compress4Entry kept[16];
     __m256i tail[5];
     Compress4() {
         for (int mask = 0; mask < 16; ++mask) {
             alignas(16) std::array<std::int32_t, 4> lane{};
             alignas(32) std::array<std::int32_t, 8> half{};
-            int kept = 0;
+            int kept_lanes = 0;
             for (int l = 0; l < 4; ++l)
                 if (mask & (1 << l)) {
-                    lane[kept] = l;
-                    half[2 * kept] = 2 * l;
-                    half[2 * kept + 1] = 2 * l + 1;
-                    ++kept;
+                    lane[kept_lanes] = l;
+                    half[2 * kept_lanes] = 2 * l;
+                    half[2 * kept_lanes + 1] = 2 * l + 1;
+                    ++kept_lanes;
                 }
-            lanes[mask] = _mm_load_si128(reinterpret_cast<const __m128i *>(lane.data()));
-            doubles[mask] = _mm256_load_si256(reinterpret_cast<const __m256i *>(half.data()));
+            kept[mask].lanes = _mm_load_si128(reinterpret_cast<const __m128i *>(lane.data()));
+            kept[mask].doubles = _mm256_load_si256(reinterpret_cast<const __m256i *>(half.data()));
         }
         for (int left = 0; left <= 4; ++left) {
             alignas(32) std::array<std::int64_t, 4> on{};
@@ -639,36 +643,50 @@ void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, s
                   zero = _mm256_setzero_pd();
     std::size_t n = out.size;
     std::uint64_t in_range = 0, remote = 0;
-    for (std::size_t j = b; j < e; j += 4) {
-        const std::size_t left = e - j;
-        const bool whole = left >= 4;
-        const __m256i valid = compress4.tail[whole ? 4 : left];
-        const auto load = [&](const double *a) {
-            return whole ? _mm256_loadu_pd(a + j) : _mm256_maskload_pd(a + j, valid);
-        };
-        const __m256d dx = _mm256_sub_pd(x0, load(x)), dy = _mm256_sub_pd(y0, load(y));
+    // The positions of the four candidates, stepped by a vector add.
+    __m128i position = _mm_set1_epi32(static_cast<int>(b));
+    const __m128i four = _mm_set1_epi32(4);
+    // Whole vectors, then the tail (masked loads, `valid` its lanes) once, and one table entry
+    // per mask: 25 instructions a vector where a tail test in every one compiled to 37. Only
+    // about 2 % of the run (sph/NOTES.md, session 64): the packing does not wait on its
+    // instruction count.
+    const auto four_candidates = [&](std::size_t j, auto load, unsigned valid)
+        __attribute__((always_inline)) {
+        const __m256d dx = _mm256_sub_pd(x0, load(x + j)), dy = _mm256_sub_pd(y0, load(y + j));
         const __m256d d2 = _mm256_fmadd_pd(dy, dy, _mm256_mul_pd(dx, dx));
-        unsigned in = static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(d2, r2, _CMP_LT_OQ))) &
-                      (whole ? 0xfu : (1u << left) - 1);
+        __m256d in = _mm256_cmp_pd(d2, r2, _CMP_LT_OQ);
         if constexpr (partners == Partners::fluid)
-            in &= static_cast<unsigned>(
-                _mm256_movemask_pd(_mm256_cmp_pd(load(fluid), zero, _CMP_GT_OQ)));
-        if constexpr (count == Counted::remote)
-            remote += static_cast<unsigned>(
-                std::popcount(in & static_cast<unsigned>(_mm256_movemask_pd(
-                                       _mm256_cmp_pd(load(far), zero, _CMP_GT_OQ)))));
-        const unsigned keep =
-            in & static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(d2, zero, _CMP_GT_OQ)));
-        if constexpr (count != Counted::no)
-            in_range += static_cast<unsigned>(std::popcount(in));
-        const __m256i move = compress4.doubles[keep];
-        _mm256_storeu_pd(sx + n,
-                         _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(dx), move)));
-        _mm256_storeu_pd(sy + n,
-                         _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(dy), move)));
+            in = _mm256_and_pd(in, _mm256_cmp_pd(load(fluid + j), zero, _CMP_GT_OQ));
+        if constexpr (count != Counted::no) {
+            const unsigned in_bits = static_cast<unsigned>(_mm256_movemask_pd(in)) & valid;
+            in_range += static_cast<unsigned>(std::popcount(in_bits));
+            if constexpr (count == Counted::remote)
+                remote += static_cast<unsigned>(
+                    std::popcount(in_bits & static_cast<unsigned>(_mm256_movemask_pd(
+                                                _mm256_cmp_pd(load(far + j), zero, _CMP_GT_OQ)))));
+        }
+        const unsigned keep = static_cast<unsigned>(_mm256_movemask_pd(
+                                  _mm256_and_pd(in, _mm256_cmp_pd(d2, zero, _CMP_GT_OQ)))) &
+                              valid;
+        const Compress4Entry &move = compress4.kept[keep];
+        _mm256_storeu_pd(
+            sx + n, _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(dx), move.doubles)));
+        _mm256_storeu_pd(
+            sy + n, _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(dy), move.doubles)));
         _mm_storeu_si128(reinterpret_cast<__m128i *>(index + n),
-                         _mm_add_epi32(_mm_set1_epi32(static_cast<int>(j)), compress4.lanes[keep]));
+                         _mm_add_epi32(position, move.lanes));
         n += static_cast<std::size_t>(std::popcount(keep));
+        position = _mm_add_epi32(position, four);
+    };
+    std::size_t j = b;
+    for (; j + 4 <= e; j += 4)
+        four_candidates(
+            j, [](const double *a) { return _mm256_loadu_pd(a); }, 0xfu);
+    if (j < e) {
+        const std::size_t left = e - j;
+        const __m256i mask = compress4.tail[left];
+        four_candidates(
+            j, [mask](const double *a) { return _mm256_maskload_pd(a, mask); }, (1u << left) - 1);
     }
     out.size = n;
     out.in_range += in_range;
