@@ -526,12 +526,19 @@ def markdown(model, validation, args, out):
 
         # Each tuned choice beside the model before it, on the same runs: (in use, folder, line).
         choices = [
-            ({c.get("term_selection", "pooled-one-percent") for c in model["compute"]} == {"levelled-one-se"},
+            ({c.get("term_selection", "pooled-one-percent") for c in model["compute"]} == {"levelled-best"},
+             "levelled-one-se",
+             "Compute-cost terms chosen by levelled-best (a cost level per setup, the set with the best "
+             "cross-validation score), a rule picked in session 64 after replaying eight main jobs' runs "
+             "(sessions 61-63) under it and under the rule before: **tuned** against validation data. "
+             "Untuned, the rule before (levelled-one-se, sessions 13-63: the smallest set within one "
+             "standard error of the best score) on the same runs: {o} (levelled-one-se/validation.json)."),
+            ({c.get("term_selection", "pooled-one-percent") for c in model["compute"]} != {"pooled-one-percent"},
              "pooled-one-percent",
-             "Compute-cost terms chosen by levelled-one-se (a cost level per setup, the smallest set within "
-             "one standard error of the best cross-validation score), a rule picked in session 13 after "
-             "comparing six rules on three main jobs' runs: **tuned** against validation data. Untuned, the "
-             "previous rule (pooled-one-percent) on the same runs: {o} (pooled-one-percent/validation.json)."),
+             "A cost level per setup in the fit and its cross-validation (session 13, after comparing six "
+             "rules on three main jobs' runs: **tuned**). The rule before it (pooled-one-percent: one "
+             "pooled fit, a term kept for a 1 % better score) on the same runs: {o} "
+             "(pooled-one-percent/validation.json)."),
             ({c.get("fit_weights", "absolute") for c in model["compute"]} == {"relative"},
              "absolute-weights",
              "Cost fit weighted per unit of each calibration run's step (calibrate --fit-weights relative, "

@@ -309,6 +309,32 @@ double cross_validate(const std::vector<std::vector<double>> &X, std::span<const
     return cross_validate_score(X, y, groups, classes).rmse;
 }
 
+std::size_t select_term_set(std::span<const CvScore> scores, std::span<const std::size_t> sizes,
+                            TermRule rule) {
+    if (scores.empty() || scores.size() != sizes.size())
+        throw std::invalid_argument("select_term_set: no candidate, or scores and sizes differ");
+    std::size_t best = 0;
+    for (std::size_t c = 1; c < scores.size(); ++c)
+        if (scores[c].rmse < scores[best].rmse)
+            best = c;
+    if (rule == TermRule::best)
+        return best;
+    std::size_t kept = rule == TermRule::one_percent ? 0 : best;
+    if (rule == TermRule::one_percent) {
+        for (std::size_t c = 0; c < scores.size(); ++c)
+            if (scores[c].rmse < scores[kept].rmse * (sizes[c] < sizes[kept] ? 1.0 : 0.99))
+                kept = c;
+        return kept;
+    }
+    const double bound = scores[best].rmse + scores[best].rmse_se;
+    for (std::size_t c = 0; c < scores.size(); ++c)
+        if (scores[c].rmse <= bound &&
+            (sizes[c] < sizes[kept] ||
+             (sizes[c] == sizes[kept] && scores[c].rmse < scores[kept].rmse)))
+            kept = c;
+    return kept;
+}
+
 double cross_validate_runs(const std::vector<std::vector<double>> &X, std::span<const double> y,
                            std::span<const int> groups, std::span<const int> classes) {
     const std::set<int> distinct(groups.begin(), groups.end());

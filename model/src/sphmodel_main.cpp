@@ -18,7 +18,7 @@ struct Options {
     std::filesystem::path machine, model, out;
     std::vector<std::filesystem::path> runs, predictions, measured;
     bool allow_other_host = false;
-    std::string term_selection = "levelled-one-se";
+    std::string term_selection = "levelled-best";
     std::string time_profile = "froude";
     std::string fit_weights = "relative";
     std::string run_level = "pooled";
@@ -52,10 +52,11 @@ int run(int argc, char **argv) {
                   "Accept reports measured on another host than the machine profile's");
     cal->add_option("--term-selection", o.term_selection,
                     "Compute-cost terms: levelled-one-se (a cost level per setup, the smallest "
-                    "set within one standard error of the best cross-validation score) or "
+                    "set within one standard error of the best cross-validation score), "
+                    "levelled-best (the same levels, the set with the best score) or "
                     "pooled-one-percent (one pooled fit, a term kept for 1 % better score)")
         ->capture_default_str()
-        ->check(cli::IsMember({"levelled-one-se", "pooled-one-percent"}));
+        ->check(cli::IsMember({"levelled-one-se", "levelled-best", "pooled-one-percent"}));
     cal->add_option("--time-profile", o.time_profile,
                     "How the cost of an interaction evolves with the flow: froude (a profile of "
                     "measured / fitted compute over Froude time from the calibration runs, a "
@@ -216,7 +217,8 @@ int run(int argc, char **argv) {
             report_header("sphmodel-calibration", topo), machine, runs,
             {o.allow_other_host,
              o.term_selection == "pooled-one-percent" ? TermSelection::pooled_one_percent
-                                                      : TermSelection::levelled_one_se,
+             : o.term_selection == "levelled-one-se"  ? TermSelection::levelled_one_se
+                                                      : TermSelection::levelled_best,
              o.time_profile == "none"              ? TimeProfile::none
              : o.time_profile == "froude-windowed" ? TimeProfile::froude_windowed
                                                    : TimeProfile::froude,

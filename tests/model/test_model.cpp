@@ -236,6 +236,73 @@ TEST(Fit, RelativeWeightsSeeThePerStepCostOfTheSmallRuns) {
     EXPECT_NEAR(f.level(0) / f.level(1), 1.05 / 0.95, 0.03);
 }
 
+TEST(Fit, TermRulesPickTheSetTheirDefinitionsSay) {
+    const std::vector<CvScore> scores{{1.00, 0.05}, {0.97, 0.04}, {0.99, 0.10}};
+    const std::vector<std::size_t> sizes{1, 2, 3};
+    EXPECT_EQ(select_term_set(scores, sizes, TermRule::best), 1u);
+    EXPECT_EQ(select_term_set(scores, sizes, TermRule::one_se), 0u); // 1.00 <= 0.97 + 0.04
+    EXPECT_EQ(select_term_set(scores, sizes, TermRule::one_percent), 1u);
+    // Beyond one standard error the larger set stays.
+    const std::vector<CvScore> apart{{1.00, 0.01}, {0.97, 0.02}};
+    EXPECT_EQ(select_term_set(apart, std::vector<std::size_t>{1, 2}, TermRule::one_se), 1u);
+    EXPECT_THROW(select_term_set({}, {}, TermRule::best), std::invalid_argument);
+}
+
+// A per-step cost, small beside the calibration runs' drift: runs at two scales, each off by a
+// drift of 3 %, and a large run predicted from them. The one-standard-error rule drops the
+// constant more often than the best score does, and its proportional cost then carries the
+// small runs' share of the constant to the large run, which comes out high on average (session
+// 64: the scale-1 dam breaks 3-8 % high over eight main jobs under it).
+TEST(Fit, BestScoreKeepsASmallPerStepCostAndExtrapolatesCloser) {
+    constexpr double per_interaction = 5e-9, per_step = 20e-6, large = 800e3;
+    const std::array<double, 4> work{45e3, 45e3, 170e3, 170e3};
+    constexpr int trials = 100;
+    double error_best = 0, error_one_se = 0;
+    int const_best = 0, const_one_se = 0;
+    for (int t = 0; t < trials; ++t) {
+        std::mt19937 rng(100 + t);
+        std::normal_distribution<double> drift(0, 0.03), noise(0, 0.01);
+        std::vector<std::vector<double>> with, without;
+        std::vector<double> y;
+        std::vector<int> runs;
+        for (int run = 0; run < 4; ++run) {
+            const double d = 1 + drift(rng);
+            for (int k = 0; k < 20; ++k) {
+                const double interactions = work[run] * (1 + 0.005 * k);
+                with.push_back({interactions, 1.0});
+                without.push_back({interactions});
+                y.push_back((per_interaction * interactions + per_step) * d * (1 + noise(rng)));
+                runs.push_back(run);
+            }
+        }
+        const std::vector<double> unit = group_median_units(y, runs);
+        std::vector<double> yw = y;
+        for (std::size_t i = 0; i < yw.size(); ++i)
+            yw[i] /= unit[i];
+        const auto xw_with = divided_rows(with, unit), xw_without = divided_rows(without, unit);
+        const std::vector<CvScore> scores{cross_validate_score(xw_without, yw, runs),
+                                          cross_validate_score(xw_with, yw, runs)};
+        const std::vector<std::size_t> sizes{1, 2};
+        const auto predicted = [&](std::size_t set) {
+            const std::vector<double> x0{large}, x1{large, 1.0};
+            return set == 0 ? fit_linear(xw_without, yw, {"interactions"}).predict(x0)
+                            : fit_linear(xw_with, yw, {"interactions", "const"}).predict(x1);
+        };
+        const double truth = per_interaction * large + per_step;
+        const std::size_t best = select_term_set(scores, sizes, TermRule::best),
+                          one_se = select_term_set(scores, sizes, TermRule::one_se);
+        const_best += best == 1;
+        const_one_se += one_se == 1;
+        error_best += (predicted(best) / truth - 1) / trials;
+        error_one_se += (predicted(one_se) / truth - 1) / trials;
+    }
+    // Measured with these seeds: the constant kept in 75 and 61 of 100; mean error +0.03 % and
+    // +0.67 %.
+    EXPECT_GT(const_best, const_one_se);
+    EXPECT_GT(error_one_se, 0.004);
+    EXPECT_LT(std::abs(error_best), 0.5 * error_one_se);
+}
+
 TEST(Fit, GroupMedianUnitsAreEachRunsMedianStep) {
     const std::vector<double> y{1, 3, 2, 10, 30, 20, 0.5};
     const std::vector<int> runs{0, 0, 0, 4, 4, 4, 2};

@@ -75,6 +75,15 @@ struct CvScore {
 CvScore cross_validate_score(const std::vector<std::vector<double>> &X, std::span<const double> y,
                              std::span<const int> groups, std::span<const int> classes = {});
 
+// Which candidate set of terms a rule keeps, given each set's held-out score and its number of
+// terms (the index into both). best: the lowest score. one_se: the smallest set whose score is
+// within one standard error (the best set's) of the best, ties in size to the lower score.
+// one_percent: a set replaces the one kept when it scores 1 % lower, or is smaller and scores
+// lower at all (candidates in order of growing sets).
+enum class TermRule { best, one_se, one_percent };
+std::size_t select_term_set(std::span<const CvScore> scores, std::span<const std::size_t> sizes,
+                            TermRule rule);
+
 // Relative weights for a fit over runs of different sizes: each point's unit is the median y of
 // its group (its run's typical step, not the point's own noisy value). Dividing a row of X and
 // its y by its unit makes every run count by its relative error, as the targets judge it.

@@ -65,7 +65,7 @@ LinearFit compute_cost_of(const nlohmann::json &entry, const std::string &setup)
 //     smallest set of terms within one standard error of the best held-out score (session 13);
 //   pooled_one_percent: one fit pooling the setups, a term kept when it lowers the held-out
 //     error by 1 % (sessions 9-12), kept to report beside it.
-enum class TermSelection { levelled_one_se, pooled_one_percent };
+enum class TermSelection { levelled_one_se, levelled_best, pooled_one_percent };
 // How the cost of an interaction changes as a flow evolves. froude: a profile over Froude time
 // (t / sqrt(scale)) of measured over fitted compute per setup, from the calibration runs (a
 // robust quadratic; froude_windowed: a moving ratio, sessions 16-41), and no time-varying term
