@@ -319,14 +319,15 @@ std::size_t select_term_set(std::span<const CvScore> scores, std::span<const std
             best = c;
     if (rule == TermRule::best)
         return best;
-    std::size_t kept = rule == TermRule::one_percent ? 0 : best;
     if (rule == TermRule::one_percent) {
+        std::size_t kept = 0;
         for (std::size_t c = 0; c < scores.size(); ++c)
             if (scores[c].rmse < scores[kept].rmse * (sizes[c] < sizes[kept] ? 1.0 : 0.99))
                 kept = c;
         return kept;
     }
     const double bound = scores[best].rmse + scores[best].rmse_se;
+    std::size_t kept = best;
     for (std::size_t c = 0; c < scores.size(); ++c)
         if (scores[c].rmse <= bound &&
             (sizes[c] < sizes[kept] ||
