@@ -580,6 +580,98 @@ struct Compress4 {
 const Compress4 compress4;
 #endif
 
+#if !(defined(__AVX512F__) && defined(__AVX512VL__)) && defined(__AVX2__) && defined(__FMA__)
+// AVX2 has no compress: four candidates at a time, their kept lanes moved to the front by a
+// permutation looked up by the 4-bit mask and stored whole (the next store overwrites the
+// rest), the tail by masked loads. On a Zen 3 host the plain loop held about 40 % of the
+// density pass's samples; this one runs the dam break 1.36x as fast (sph/NOTES.md, session 60).
+// K particles at (xi[k], yi[k]) at once, into out[k]: the particles of one cell scan the same
+// ranges, so each vector of candidates is loaded, and each loop exit taken, once for all K.
+template <Counted count, Partners partners, int K>
+[[gnu::always_inline]] inline void pack_range_avx2(const CellSorted::View &v, const double *xi,
+                                                   const double *yi, double r2max, std::size_t b,
+                                                   std::size_t e, PackedCandidates *const *out) {
+    const double *x = v.x, *y = v.y, *fluid = v.fluid, *far = v.remote;
+    const __m256d r2 = _mm256_set1_pd(r2max), zero = _mm256_setzero_pd();
+    __m256d x0[K], y0[K];
+    // Local pointers: the stores below could otherwise alias the vectors' own.
+    std::uint32_t *index[K];
+    double *sx[K], *sy[K];
+    std::size_t n[K];
+    std::uint64_t in_range[K], remote[K];
+#pragma GCC unroll 8
+    for (int k = 0; k < K; ++k) {
+        x0[k] = _mm256_set1_pd(xi[k]);
+        y0[k] = _mm256_set1_pd(yi[k]);
+        index[k] = out[k]->index.data();
+        sx[k] = out[k]->dx.data();
+        sy[k] = out[k]->dy.data();
+        n[k] = out[k]->size;
+        in_range[k] = remote[k] = 0;
+    }
+    // The positions of the four candidates, stepped by a vector add.
+    __m128i position = _mm_set1_epi32(static_cast<int>(b));
+    const __m128i four = _mm_set1_epi32(4);
+    // Whole vectors, then the tail (masked loads, `valid` its lanes) once, and one table entry
+    // per mask: 25 instructions a vector where a tail test in every one compiled to 37. Only
+    // about 2 % of the run (sph/NOTES.md, session 64): the packing does not wait on its
+    // instruction count.
+    const auto four_candidates = [&](std::size_t j, auto load, unsigned valid)
+        __attribute__((always_inline)) {
+        const __m256d xj = load(x + j), yj = load(y + j);
+        __m256d wet{};
+        if constexpr (partners == Partners::fluid)
+            wet = _mm256_cmp_pd(load(fluid + j), zero, _CMP_GT_OQ);
+        unsigned far_bits = 0;
+        if constexpr (count == Counted::remote)
+            far_bits = static_cast<unsigned>(
+                _mm256_movemask_pd(_mm256_cmp_pd(load(far + j), zero, _CMP_GT_OQ)));
+#pragma GCC unroll 8
+        for (int k = 0; k < K; ++k) {
+            const __m256d dx = _mm256_sub_pd(x0[k], xj), dy = _mm256_sub_pd(y0[k], yj);
+            const __m256d d2 = _mm256_fmadd_pd(dy, dy, _mm256_mul_pd(dx, dx));
+            __m256d in = _mm256_cmp_pd(d2, r2, _CMP_LT_OQ);
+            if constexpr (partners == Partners::fluid)
+                in = _mm256_and_pd(in, wet);
+            if constexpr (count != Counted::no) {
+                const unsigned in_bits = static_cast<unsigned>(_mm256_movemask_pd(in)) & valid;
+                in_range[k] += static_cast<unsigned>(std::popcount(in_bits));
+                if constexpr (count == Counted::remote)
+                    remote[k] += static_cast<unsigned>(std::popcount(in_bits & far_bits));
+            }
+            const unsigned keep = static_cast<unsigned>(_mm256_movemask_pd(
+                                      _mm256_and_pd(in, _mm256_cmp_pd(d2, zero, _CMP_GT_OQ)))) &
+                                  valid;
+            const Compress4Entry &move = compress4.kept[keep];
+            _mm256_storeu_pd(sx[k] + n[k], _mm256_castps_pd(_mm256_permutevar8x32_ps(
+                                               _mm256_castpd_ps(dx), move.doubles)));
+            _mm256_storeu_pd(sy[k] + n[k], _mm256_castps_pd(_mm256_permutevar8x32_ps(
+                                               _mm256_castpd_ps(dy), move.doubles)));
+            _mm_storeu_si128(reinterpret_cast<__m128i *>(index[k] + n[k]),
+                             _mm_add_epi32(position, move.lanes));
+            n[k] += static_cast<std::size_t>(std::popcount(keep));
+        }
+        position = _mm_add_epi32(position, four);
+    };
+    std::size_t j = b;
+    for (; j + 4 <= e; j += 4)
+        four_candidates(
+            j, [](const double *a) { return _mm256_loadu_pd(a); }, 0xfu);
+    if (j < e) {
+        const std::size_t left = e - j;
+        const __m256i mask = compress4.tail[left];
+        four_candidates(
+            j, [mask](const double *a) { return _mm256_maskload_pd(a, mask); }, (1u << left) - 1);
+    }
+#pragma GCC unroll 8
+    for (int k = 0; k < K; ++k) {
+        out[k]->size = n[k];
+        out[k]->in_range += in_range[k];
+        out[k]->remote += remote[k];
+    }
+}
+#endif
+
 template <Counted count, Partners partners>
 void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, std::size_t b,
                 std::size_t e, PackedCandidates &out) {
@@ -631,91 +723,67 @@ void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, s
     if constexpr (count == Counted::remote)
         out.remote += lane_sum(remote);
 #elif defined(__AVX2__) && defined(__FMA__)
-    // AVX2 has no compress: four candidates at a time, their kept lanes moved to the front by a
-    // permutation looked up by the 4-bit mask and stored whole (the next store overwrites the
-    // rest), the tail by masked loads. On a Zen 3 host the plain loop held about 40 % of the
-    // density pass's samples; this one runs the dam break 1.36x as fast (sph/NOTES.md,
-    // session 60).
-    const double *x = v.x, *y = v.y, *fluid = v.fluid, *far = v.remote;
-    std::uint32_t *index = out.index.data();
-    double *sx = out.dx.data(), *sy = out.dy.data();
-    const __m256d x0 = _mm256_set1_pd(xi), y0 = _mm256_set1_pd(yi), r2 = _mm256_set1_pd(r2max),
-                  zero = _mm256_setzero_pd();
-    std::size_t n = out.size;
-    std::uint64_t in_range = 0, remote = 0;
-    // The positions of the four candidates, stepped by a vector add.
-    __m128i position = _mm_set1_epi32(static_cast<int>(b));
-    const __m128i four = _mm_set1_epi32(4);
-    // Whole vectors, then the tail (masked loads, `valid` its lanes) once, and one table entry
-    // per mask: 25 instructions a vector where a tail test in every one compiled to 37. Only
-    // about 2 % of the run (sph/NOTES.md, session 64): the packing does not wait on its
-    // instruction count.
-    const auto four_candidates = [&](std::size_t j, auto load, unsigned valid)
-        __attribute__((always_inline)) {
-        const __m256d dx = _mm256_sub_pd(x0, load(x + j)), dy = _mm256_sub_pd(y0, load(y + j));
-        const __m256d d2 = _mm256_fmadd_pd(dy, dy, _mm256_mul_pd(dx, dx));
-        __m256d in = _mm256_cmp_pd(d2, r2, _CMP_LT_OQ);
-        if constexpr (partners == Partners::fluid)
-            in = _mm256_and_pd(in, _mm256_cmp_pd(load(fluid + j), zero, _CMP_GT_OQ));
-        if constexpr (count != Counted::no) {
-            const unsigned in_bits = static_cast<unsigned>(_mm256_movemask_pd(in)) & valid;
-            in_range += static_cast<unsigned>(std::popcount(in_bits));
-            if constexpr (count == Counted::remote)
-                remote += static_cast<unsigned>(
-                    std::popcount(in_bits & static_cast<unsigned>(_mm256_movemask_pd(
-                                                _mm256_cmp_pd(load(far + j), zero, _CMP_GT_OQ)))));
-        }
-        const unsigned keep = static_cast<unsigned>(_mm256_movemask_pd(
-                                  _mm256_and_pd(in, _mm256_cmp_pd(d2, zero, _CMP_GT_OQ)))) &
-                              valid;
-        const Compress4Entry &move = compress4.kept[keep];
-        _mm256_storeu_pd(
-            sx + n, _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(dx), move.doubles)));
-        _mm256_storeu_pd(
-            sy + n, _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(dy), move.doubles)));
-        _mm_storeu_si128(reinterpret_cast<__m128i *>(index + n),
-                         _mm_add_epi32(position, move.lanes));
-        n += static_cast<std::size_t>(std::popcount(keep));
-        position = _mm_add_epi32(position, four);
-    };
-    std::size_t j = b;
-    for (; j + 4 <= e; j += 4)
-        four_candidates(
-            j, [](const double *a) { return _mm256_loadu_pd(a); }, 0xfu);
-    if (j < e) {
-        const std::size_t left = e - j;
-        const __m256i mask = compress4.tail[left];
-        four_candidates(
-            j, [mask](const double *a) { return _mm256_maskload_pd(a, mask); }, (1u << left) - 1);
-    }
-    out.size = n;
-    out.in_range += in_range;
-    out.remote += remote;
+    PackedCandidates *one[1] = {&out};
+    const double xs[1] = {xi}, ys[1] = {yi};
+    pack_range_avx2<count, partners, 1>(v, xs, ys, r2max, b, e, one);
 #else
     pack_range_portable<count, partners>(v, xi, yi, r2max, b, e, out);
 #endif
 }
 
-// Packs the candidates of the 3 x 3 cells around cell (col, row) that interact with particle
-// `self` (see PackedCandidates), padded to whole vectors.
+// Particles of one cell packed together (pack_range_avx2): a cell is a row of about four
+// particles at the dam break's spacing.
+constexpr int batch_size = pack_batch_size;
+
+// Packs [b, e) for particles (xi[k], yi[k]), k < batch, into out[k].
 template <Counted count, Partners partners>
-void pack_neighbourhood(const CellSorted::View &v, int col, int row, std::size_t self, double r2max,
-                        PackedCandidates &out) {
+void pack_ranges(const CellSorted::View &v, const double *xi, const double *yi, int batch,
+                 double r2max, std::size_t b, std::size_t e, PackedCandidates *const *out) {
+#if !(defined(__AVX512F__) && defined(__AVX512VL__)) && defined(__AVX2__) && defined(__FMA__)
+    static_assert(batch_size == 4);
+    switch (batch) {
+    case 1:
+        return pack_range_avx2<count, partners, 1>(v, xi, yi, r2max, b, e, out);
+    case 2:
+        return pack_range_avx2<count, partners, 2>(v, xi, yi, r2max, b, e, out);
+    case 3:
+        return pack_range_avx2<count, partners, 3>(v, xi, yi, r2max, b, e, out);
+    default:
+        return pack_range_avx2<count, partners, 4>(v, xi, yi, r2max, b, e, out);
+    }
+#else
+    for (int k = 0; k < batch; ++k)
+        pack_range<count, partners>(v, xi[k], yi[k], r2max, b, e, *out[k]);
+#endif
+}
+
+// Packs, for each particle self[k] (k < batch, all of cell (col, row)), the candidates of the
+// 3 x 3 cells around the cell that interact with it into out[k] (see PackedCandidates), padded
+// to whole vectors.
+template <Counted count, Partners partners>
+void pack_neighbourhoods(const CellSorted::View &v, int col, int row, const std::size_t *self,
+                         int batch, double r2max, PackedCandidates *const *out) {
     constexpr int reach = CellSorted::rows_per_cell; // rows within 3h
     const int r0 = std::max(row - reach, 0), r1 = std::min(row + reach, v.rows - 1);
     const int c0 = std::max(col - 1, 0), c1 = std::min(col + 1, v.cols - 1);
     std::size_t candidates = 0;
     for (int c = c0; c <= c1; ++c)
         candidates += v.start[c * v.rows + r1 + 1] - v.start[c * v.rows + r0];
-    // Room for every candidate, the vector stores past the last one and the padding.
-    if (out.index.size() < candidates + pair_lanes) {
-        const std::size_t room = std::bit_ceil(candidates + pair_lanes);
-        out.index.resize(room);
-        out.dx.resize(room);
-        out.dy.resize(room);
+    double xi[batch_size], yi[batch_size];
+    for (int k = 0; k < batch; ++k) {
+        PackedCandidates &o = *out[k];
+        // Room for every candidate, the vector stores past the last one and the padding.
+        if (o.index.size() < candidates + pair_lanes) {
+            const std::size_t room = std::bit_ceil(candidates + pair_lanes);
+            o.index.resize(room);
+            o.dx.resize(room);
+            o.dy.resize(room);
+        }
+        o.size = 0;
+        o.in_range = o.remote = 0;
+        xi[k] = v.x[self[k]];
+        yi[k] = v.y[self[k]];
     }
-    out.size = 0;
-    out.in_range = out.remote = 0;
     for (int c = c0; c <= c1; ++c) {
         const std::size_t b = v.start[c * v.rows + r0], e = v.start[c * v.rows + r1 + 1];
         // A range without fluid holds no partner of a wall particle: a dry wall costs
@@ -723,15 +791,25 @@ void pack_neighbourhood(const CellSorted::View &v, int col, int row, std::size_t
         if (partners == Partners::fluid && v.fluid_in(c, r0, r1 + 1) == 0)
             continue;
         if (count == Counted::remote && !v.remote_columns[c])
-            pack_range<Counted::in_range, partners>(v, v.x[self], v.y[self], r2max, b, e, out);
+            pack_ranges<Counted::in_range, partners>(v, xi, yi, batch, r2max, b, e, out);
         else
-            pack_range<count, partners>(v, v.x[self], v.y[self], r2max, b, e, out);
+            pack_ranges<count, partners>(v, xi, yi, batch, r2max, b, e, out);
     }
-    out.padded = (out.size + pair_lanes - 1) / pair_lanes * pair_lanes;
-    for (std::size_t q = out.size; q < out.padded; ++q) {
-        out.index[q] = static_cast<std::uint32_t>(self);
-        out.dx[q] = out.dy[q] = 0;
+    for (int k = 0; k < batch; ++k) {
+        PackedCandidates &o = *out[k];
+        o.padded = (o.size + pair_lanes - 1) / pair_lanes * pair_lanes;
+        for (std::size_t q = o.size; q < o.padded; ++q) {
+            o.index[q] = static_cast<std::uint32_t>(self[k]);
+            o.dx[q] = o.dy[q] = 0;
+        }
     }
+}
+
+template <Counted count, Partners partners>
+void pack_neighbourhood(const CellSorted::View &v, int col, int row, std::size_t self, double r2max,
+                        PackedCandidates &out) {
+    PackedCandidates *const one[1] = {&out};
+    pack_neighbourhoods<count, partners>(v, col, row, &self, 1, r2max, one);
 }
 
 } // namespace
@@ -750,6 +828,18 @@ void pack_in_range(const CellSorted::View &v, double xi, double yi, double r2max
         pack_range<Counted::remote, Partners::fluid>(v, xi, yi, r2max, b, e, out);
     else
         pack_range<Counted::remote, Partners::all>(v, xi, yi, r2max, b, e, out);
+}
+
+void pack_in_range(const CellSorted::View &v, const double *xi, const double *yi, int batch,
+                   double r2max, bool fluid_only, std::size_t b, std::size_t e,
+                   PackedCandidates *const *out) {
+    if (batch < 1 || batch > batch_size)
+        throw std::invalid_argument("pack_in_range: batch " + std::to_string(batch) +
+                                    ", expected 1 to " + std::to_string(batch_size));
+    if (fluid_only)
+        pack_ranges<Counted::remote, Partners::fluid>(v, xi, yi, batch, r2max, b, e, out);
+    else
+        pack_ranges<Counted::remote, Partners::all>(v, xi, yi, batch, r2max, b, e, out);
 }
 
 namespace {
@@ -922,6 +1012,27 @@ struct Neighbours4 {
     return {ax.total(), ay.total()};
 }
 
+// A thread's packs for the owned fluid particles of one cell, taken up to batch_size at a time
+// (pack_neighbourhoods: they share the cell's candidate ranges).
+struct CellBatch {
+    PackedCandidates pack[batch_size];
+    PackedCandidates *const out[batch_size] = {&pack[0], &pack[1], &pack[2], &pack[3]};
+    std::size_t self[batch_size] = {};
+    CellBatch() = default;
+    CellBatch(const CellBatch &) = delete;
+    CellBatch &operator=(const CellBatch &) = delete;
+    // Takes the next owned particles of sorted positions [s, e) that are fluid (or, with
+    // `fluid` false, walls) into self, up to batch_size of them; returns how many it took
+    // (0: [s, e) holds no more).
+    int next(const CellSorted::View &v, std::size_t &s, std::size_t e, bool fluid) {
+        int n = 0;
+        for (; s < e && n < batch_size; ++s)
+            if (v.orig[s] < v.owned && (v.fluid[s] > 0) == fluid)
+                self[n++] = s;
+        return n;
+    }
+};
+
 // This thread's cells of the view (inside a parallel region).
 std::pair<int, int> thread_cells(const CellSorted::View &v) {
     const auto [c0, c1] =
@@ -1013,29 +1124,38 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
     nb.grid->start_pass();
 #pragma omp parallel reduction(+ : interactions, remote)
     {
-        PackedCandidates nbr;
+        CellBatch batch;
         ThreadCells cells(*nb.grid, v, columns);
         for (int c0 = 0, c1 = 0; cells.next(c0, c1);)
             for (int cell = c0; cell < c1; ++cell) {
                 const int col = cell / v.rows, row = cell % v.rows;
                 if (!columns.contains(col))
                     continue;
-                for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i) {
-                    if (v.orig[i] >= v.owned)
-                        continue;
-                    // A fluid particle interacts with every particle within 3h, itself included in
-                    // the count (subtracted below; its own term is 0); a wall particle with fluid
-                    // particles only, so not with itself.
-                    const bool fluid_i = v.fluid[i] > 0;
-                    if (fluid_i)
-                        pack_neighbourhood<Counted::remote, Partners::all>(v, col, row, i, r2max,
-                                                                           nbr);
-                    else
-                        pack_neighbourhood<Counted::remote, Partners::fluid>(v, col, row, i, r2max,
-                                                                             nbr);
-                    p.drho[v.orig[i]] = density_rate_sum(v, nbr, k, back, v.vx[i], v.vy[i]);
-                    interactions += nbr.in_range - (fluid_i ? 1 : 0);
-                    remote += nbr.remote;
+                const std::size_t first = v.start[cell], end = v.start[cell + 1];
+                // A fluid particle interacts with every particle within 3h, itself included in
+                // the count (subtracted here; its own term is 0).
+                for (std::size_t s = first; const int n = batch.next(v, s, end, true);) {
+                    pack_neighbourhoods<Counted::remote, Partners::all>(v, col, row, batch.self, n,
+                                                                        r2max, batch.out);
+                    for (int b = 0; b < n; ++b) {
+                        const std::size_t i = batch.self[b];
+                        const PackedCandidates &pack = batch.pack[b];
+                        p.drho[v.orig[i]] = density_rate_sum(v, pack, k, back, v.vx[i], v.vy[i]);
+                        interactions += pack.in_range - 1;
+                        remote += pack.remote;
+                    }
+                }
+                // A wall particle with fluid particles only, so not with itself.
+                for (std::size_t s = first; const int n = batch.next(v, s, end, false);) {
+                    pack_neighbourhoods<Counted::remote, Partners::fluid>(v, col, row, batch.self,
+                                                                          n, r2max, batch.out);
+                    for (int b = 0; b < n; ++b) {
+                        const std::size_t i = batch.self[b];
+                        const PackedCandidates &pack = batch.pack[b];
+                        p.drho[v.orig[i]] = density_rate_sum(v, pack, k, back, v.vx[i], v.vy[i]);
+                        interactions += pack.in_range;
+                        remote += pack.remote;
+                    }
                 }
             }
     }
@@ -1052,21 +1172,36 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
     const ForceConstants c{k, 0.01 * k.h * k.h, -2 * phys.alpha * phys.c0 * k.h};
-    for_each_owned(*nb.grid, v, columns,
-                   [&](std::size_t i, int col, int row, PackedCandidates &nbr) {
-                       const std::uint32_t oi = v.orig[i];
-                       if (v.fluid[i] == 0) { // wall particles do not move
-                           p.ax[oi] = 0;
-                           p.ay[oi] = 0;
-                           return;
-                       }
-                       // i is fluid: every j interacts.
-                       pack_neighbourhood<Counted::no, Partners::all>(v, col, row, i, r2max, nbr);
-                       const Force<double> a =
-                           force_sum(v, nbr, c, {v.vx[i], v.vy[i], v.rho[i], v.p_over_rho2[i]});
-                       p.ax[oi] = a.x;
-                       p.ay[oi] = a.y - phys.gravity;
-                   });
+    nb.grid->start_pass();
+#pragma omp parallel
+    {
+        CellBatch batch;
+        ThreadCells cells(*nb.grid, v, columns);
+        for (int c0 = 0, c1 = 0; cells.next(c0, c1);)
+            for (int cell = c0; cell < c1; ++cell) {
+                const int col = cell / v.rows, row = cell % v.rows;
+                if (!columns.contains(col))
+                    continue;
+                for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i)
+                    if (v.orig[i] < v.owned && v.fluid[i] == 0) { // wall particles do not move
+                        p.ax[v.orig[i]] = 0;
+                        p.ay[v.orig[i]] = 0;
+                    }
+                // Fluid particles: every j interacts.
+                for (std::size_t s = v.start[cell];
+                     const int n = batch.next(v, s, v.start[cell + 1], true);) {
+                    pack_neighbourhoods<Counted::no, Partners::all>(v, col, row, batch.self, n,
+                                                                    r2max, batch.out);
+                    for (int b = 0; b < n; ++b) {
+                        const std::size_t i = batch.self[b];
+                        const Force<double> a = force_sum(
+                            v, batch.pack[b], c, {v.vx[i], v.vy[i], v.rho[i], v.p_over_rho2[i]});
+                        p.ax[v.orig[i]] = a.x;
+                        p.ay[v.orig[i]] = a.y - phys.gravity;
+                    }
+                }
+            }
+    }
 }
 
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {

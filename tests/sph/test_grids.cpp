@@ -13,6 +13,7 @@
 #include <numeric>
 #include <random>
 #include <set>
+#include <stdexcept>
 
 using namespace sphperf::sph;
 
@@ -315,6 +316,71 @@ TEST(CellSorted, PackedCandidatesAreTheFilteredRangeInOrder) {
     EXPECT_GT(coincident, 0u);
     EXPECT_GT(remote, 100u);
     EXPECT_GT(tails, 100u);
+}
+
+// The passes pack the particles of one cell together (they scan the same ranges): each
+// particle's pack is then the one the plain filter gives it alone, positions, separations to
+// the bit and counts, for every batch size, with and without wall candidates.
+TEST(CellSorted, PackedTogetherIsPackedOneByOne) {
+    Particles p = random_configuration(22, 700, 200);
+    p.x[10] = p.x[11]; // two owned particles at one position
+    p.y[10] = p.y[11];
+    CellSorted g;
+    g.update(p, window);
+    const CellSorted::View v = g.view();
+    const double r2 = cell * cell;
+    const int cells = v.cols * v.rows;
+    std::size_t packed = 0, remote = 0;
+    for (int batch = 1; batch <= pack_batch_size; ++batch)
+        for (std::size_t i = 0; i + static_cast<std::size_t>(batch) <= p.size(); ++i) {
+            // The ranges around sorted position i's cell, for i and the positions after it.
+            const int cell_i = static_cast<int>(std::upper_bound(v.start, v.start + cells + 1,
+                                                                 static_cast<std::uint32_t>(i)) -
+                                                v.start) -
+                               1;
+            const int col = cell_i / v.rows, row = cell_i % v.rows;
+            const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
+            const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
+            for (int c = std::max(col - 1, 0); c <= std::min(col + 1, v.cols - 1); ++c) {
+                const std::size_t b = v.start[c * v.rows + r0], e = v.start[c * v.rows + r1 + 1];
+                for (const bool fluid_only : {false, true}) {
+                    std::vector<PackedCandidates> together(pack_batch_size), alone(pack_batch_size);
+                    std::vector<PackedCandidates *> out;
+                    std::vector<double> xi, yi;
+                    for (int k = 0; k < batch; ++k) {
+                        for (auto *pc : {&together[k], &alone[k]}) {
+                            pc->index.assign(e - b + 8, 0);
+                            pc->dx.assign(e - b + 8, 0);
+                            pc->dy.assign(e - b + 8, 0);
+                        }
+                        out.push_back(&together[k]);
+                        xi.push_back(v.x[i + k]);
+                        yi.push_back(v.y[i + k]);
+                        pack_in_range_portable(v, xi[k], yi[k], r2, fluid_only, b, e, alone[k]);
+                    }
+                    pack_in_range(v, xi.data(), yi.data(), batch, r2, fluid_only, b, e, out.data());
+                    for (int k = 0; k < batch; ++k) {
+                        ASSERT_EQ(together[k].size, alone[k].size) << i << " " << k;
+                        for (std::size_t q = 0; q < alone[k].size; ++q) {
+                            ASSERT_EQ(together[k].index[q], alone[k].index[q]) << i;
+                            EXPECT_EQ(together[k].dx[q], alone[k].dx[q]);
+                            EXPECT_EQ(together[k].dy[q], alone[k].dy[q]);
+                        }
+                        EXPECT_EQ(together[k].in_range, alone[k].in_range) << i;
+                        EXPECT_EQ(together[k].remote, alone[k].remote) << i;
+                        packed += alone[k].size;
+                        remote += alone[k].remote;
+                    }
+                }
+            }
+        }
+    EXPECT_GT(packed, 10000u);
+    EXPECT_GT(remote, 100u);
+    // A batch outside 1..pack_batch_size is refused, not clamped.
+    PackedCandidates one;
+    PackedCandidates *out[1] = {&one};
+    const double x0 = v.x[0], y0 = v.y[0];
+    EXPECT_THROW(pack_in_range(v, &x0, &y0, 0, r2, false, 0, 1, out), std::invalid_argument);
 }
 
 // The branch-free kernel the vectorised loops use is the quintic kernel to rounding (the

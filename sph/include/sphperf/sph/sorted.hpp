@@ -309,6 +309,15 @@ void pack_in_range(const CellSorted::View &v, double xi, double yi, double r2max
                    std::size_t b, std::size_t e, PackedCandidates &out);
 void pack_in_range_portable(const CellSorted::View &v, double xi, double yi, double r2max,
                             bool fluid_only, std::size_t b, std::size_t e, PackedCandidates &out);
+// The same for `batch` particles at once (1 to pack_batch_size), at (xi[k], yi[k]) into
+// out[k]: the passes pack the particles of one cell together, since they scan the same ranges
+// (each vector of candidates loaded and each range's loop run once for all of them: 6 % of the
+// dam break's compute on the Zen 3 host of session 65, sph/NOTES.md). Each out[k] as
+// pack_in_range for that particle alone leaves it (tested).
+inline constexpr int pack_batch_size = 4;
+void pack_in_range(const CellSorted::View &v, const double *xi, const double *yi, int batch,
+                   double r2max, bool fluid_only, std::size_t b, std::size_t e,
+                   PackedCandidates *const *out);
 
 // The three drivers of the physics for Cell+Sorted (physics.hpp has them for stored lists).
 void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double back = 0);
