@@ -454,6 +454,10 @@ constexpr double tiny = 1e-150;
 // the density pass and 0.93-1.01 in the forces; 4 lanes took 1.19, 32 1.04-1.14 (density).
 constexpr int lanes = 8;
 constexpr int pair_lanes = 16;
+// The packed lists are padded to whole vectors of the pair loops: 16 lanes for the compiler's
+// loops, a group of four for the AVX2 ones (which run the last block's groups that hold a
+// candidate only).
+constexpr int pad_lanes = pair_records ? 4 : pair_lanes;
 
 // A sum split over a fixed number of lanes by position within each range (or packed list),
 // then added in a fixed tree (neighbours pairwise): deterministic for given range contents, and
@@ -797,7 +801,7 @@ void pack_neighbourhoods(const CellSorted::View &v, int col, int row, const std:
     }
     for (int k = 0; k < batch; ++k) {
         PackedCandidates &o = *out[k];
-        o.padded = (o.size + pair_lanes - 1) / pair_lanes * pair_lanes;
+        o.padded = (o.size + pad_lanes - 1) / pad_lanes * pad_lanes;
         for (std::size_t q = o.size; q < o.padded; ++q) {
             o.index[q] = static_cast<std::uint32_t>(self[k]);
             o.dx[q] = o.dy[q] = 0;
@@ -912,6 +916,27 @@ template <class T>
 }
 
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+// The last block of a packed list holds `left` positions (padded to whole groups of four,
+// fewer than 16): group(g) for its groups g that hold one, each with a constant index, so the
+// sums stay in registers. The padding to 16 lanes this replaces added zeros only, an eighth
+// of the pair loops' lanes on average (sph/NOTES.md, session 65).
+template <class Group>
+[[gnu::always_inline]] inline void tail_groups(std::size_t left, Group group) {
+    switch (left / 4) {
+    case 3:
+        group(2);
+        [[fallthrough]];
+    case 2:
+        group(1);
+        [[fallthrough]];
+    case 1:
+        group(0);
+        break;
+    default:
+        break;
+    }
+}
+
 // Four neighbours' vx, vy, rho and P / rho^2 from their records (View::records): four
 // 32-byte loads and a 4 x 4 transpose, where GCC's gathers take a load and a shuffle a lane.
 struct Neighbours4 {
@@ -948,15 +973,20 @@ struct Neighbours4 {
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum[groups] = {};
     const Lanes4 vxi4 = _mm256_set1_pd(vxi), vyi4 = _mm256_set1_pd(vyi);
-    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes)
+    const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {
+        const std::uint32_t *j = idx + q + 4 * g;
+        const Neighbours4 n = load_records(v.records, j);
+        sum[g] += density_rate_term(k, back, _mm256_load_pd(sx + q + 4 * g),
+                                    _mm256_load_pd(sy + q + 4 * g), vxi4 - n.vx, vyi4 - n.vy,
+                                    gather4(v.mass, j));
+    };
+    std::size_t q = 0;
+    for (; q + pair_lanes <= nbr.padded; q += pair_lanes)
 #pragma GCC unroll 4 // the groups interleaved: rolled, this lost to the compiler (session 63)
-        for (int g = 0; g < groups; ++g) {
-            const std::uint32_t *j = idx + q + 4 * g;
-            const Neighbours4 n = load_records(v.records, j);
-            sum[g] += density_rate_term(k, back, _mm256_load_pd(sx + q + 4 * g),
-                                        _mm256_load_pd(sy + q + 4 * g), vxi4 - n.vx, vyi4 - n.vy,
-                                        gather4(v.mass, j));
-        }
+        for (int g = 0; g < groups; ++g)
+            group(q, g);
+    tail_groups(
+        nbr.padded - q, [&](int g) __attribute__((always_inline)) { group(q, g); });
     for (int g = 0; g < groups; ++g)
         _mm256_storeu_pd(drho.v + 4 * g, sum[g]);
 #else
@@ -982,17 +1012,22 @@ struct Neighbours4 {
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum_x[groups] = {}, sum_y[groups] = {};
-    for (std::size_t q = 0; q < nbr.padded; q += pair_lanes)
+    const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {
+        const std::uint32_t *j = idx + q + 4 * g;
+        const Neighbours4 n = load_records(v.records, j);
+        const Force<Lanes4> a =
+            force_term(c, i, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g), n.vx,
+                       n.vy, n.rho, n.p_over_rho2, gather4(v.mass, j));
+        sum_x[g] += a.x;
+        sum_y[g] += a.y;
+    };
+    std::size_t q = 0;
+    for (; q + pair_lanes <= nbr.padded; q += pair_lanes)
 #pragma GCC unroll 4 // the groups interleaved: rolled, this lost to the compiler (session 63)
-        for (int g = 0; g < groups; ++g) {
-            const std::uint32_t *j = idx + q + 4 * g;
-            const Neighbours4 n = load_records(v.records, j);
-            const Force<Lanes4> a =
-                force_term(c, i, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g),
-                           n.vx, n.vy, n.rho, n.p_over_rho2, gather4(v.mass, j));
-            sum_x[g] += a.x;
-            sum_y[g] += a.y;
-        }
+        for (int g = 0; g < groups; ++g)
+            group(q, g);
+    tail_groups(
+        nbr.padded - q, [&](int g) __attribute__((always_inline)) { group(q, g); });
     for (int g = 0; g < groups; ++g) {
         _mm256_storeu_pd(ax.v + 4 * g, sum_x[g]);
         _mm256_storeu_pd(ay.v + 4 * g, sum_y[g]);

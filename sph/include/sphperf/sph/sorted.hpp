@@ -295,7 +295,7 @@ struct PackedCandidates {
     std::vector<std::uint32_t, CacheLineAllocator<std::uint32_t>> index;
     std::vector<double, CacheLineAllocator<double>> dx, dy;
     std::size_t size = 0;       // packed candidates, without the padding
-    std::size_t padded = 0;     // with it: a multiple of the pair loops' 16 lanes
+    std::size_t padded = 0;     // with it: a multiple of the pair loops' vectors (4 or 16 lanes)
     std::uint64_t in_range = 0; // candidates within the support (with those at distance 0)
     std::uint64_t remote = 0;   // of those, the ones this rank does not own
 };
