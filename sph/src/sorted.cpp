@@ -916,6 +916,18 @@ template <class T>
 }
 
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+// PairSum::total() of the 16 lanes held as four groups of four, in registers: the same tree
+// (neighbouring lanes, then neighbouring pairs, ...), so the same bits. Through memory and
+// scalar additions it took about 5 % of the run's samples (sph/NOTES.md, session 65).
+[[gnu::always_inline]] inline double tree_sum(const Lanes4 (&g)[4]) {
+    // [g0 l0+l1, g1 l0+l1, g0 l2+l3, g1 l2+l3], then its halves added: [g0, g1] summed.
+    const __m256d a = _mm256_hadd_pd(g[0], g[1]), b = _mm256_hadd_pd(g[2], g[3]);
+    const __m128d g01 = _mm_add_pd(_mm256_castpd256_pd128(a), _mm256_extractf128_pd(a, 1));
+    const __m128d g23 = _mm_add_pd(_mm256_castpd256_pd128(b), _mm256_extractf128_pd(b, 1));
+    const __m128d pairs = _mm_hadd_pd(g01, g23); // [g0 + g1, g2 + g3]
+    return _mm_cvtsd_f64(_mm_add_sd(pairs, _mm_unpackhi_pd(pairs, pairs)));
+}
+
 // The last block of a packed list holds `left` positions (padded to whole groups of four,
 // fewer than 16): group(g) for its groups g that hold one, each with a constant index, so the
 // sums stay in registers. The padding to 16 lanes this replaces added zeros only, an eighth
@@ -968,7 +980,6 @@ struct Neighbours4 {
                                                       double vxi, double vyi) {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-    PairSum drho;
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum[groups] = {};
@@ -987,9 +998,9 @@ struct Neighbours4 {
             group(q, g);
     tail_groups(
         nbr.padded - q, [&](int g) __attribute__((always_inline)) { group(q, g); });
-    for (int g = 0; g < groups; ++g)
-        _mm256_storeu_pd(drho.v + 4 * g, sum[g]);
+    return tree_sum(sum);
 #else
+    PairSum drho;
     for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
 #pragma omp simd
         for (int l = 0; l < pair_lanes; ++l) {
@@ -998,8 +1009,8 @@ struct Neighbours4 {
                                            vyi - v.vy[j], v.mass[j]);
         }
     }
-#endif
     return drho.total();
+#endif
 }
 
 [[gnu::always_inline]] inline Force<double> force_sum(const CellSorted::View &v,
@@ -1008,7 +1019,6 @@ struct Neighbours4 {
                                                       const ForceParticle &i) {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-    PairSum ax, ay;
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum_x[groups] = {}, sum_y[groups] = {};
@@ -1028,11 +1038,9 @@ struct Neighbours4 {
             group(q, g);
     tail_groups(
         nbr.padded - q, [&](int g) __attribute__((always_inline)) { group(q, g); });
-    for (int g = 0; g < groups; ++g) {
-        _mm256_storeu_pd(ax.v + 4 * g, sum_x[g]);
-        _mm256_storeu_pd(ay.v + 4 * g, sum_y[g]);
-    }
+    return {tree_sum(sum_x), tree_sum(sum_y)};
 #else
+    PairSum ax, ay;
     for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
 #pragma omp simd
         for (int l = 0; l < pair_lanes; ++l) {
@@ -1043,8 +1051,8 @@ struct Neighbours4 {
             ay.v[l] += a.y;
         }
     }
-#endif
     return {ax.total(), ay.total()};
+#endif
 }
 
 // A thread's packs for the owned fluid particles of one cell, taken up to batch_size at a time
