@@ -319,13 +319,17 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     owned_ = p.owned();
     key_.resize(n);
     std::size_t misplaced = n; // the first particle in an edge column kept for ghosts
-#pragma omp parallel for schedule(static) reduction(min : misplaced)
+    const double mass = n > 0 ? p.mass[0] : 0.0;
+    bool one_mass = true;
+#pragma omp parallel for schedule(static) reduction(min : misplaced) reduction(&& : one_mass)
     for (std::size_t i = 0; i < n; ++i) {
         const std::uint32_t k = key_of(p.x[i], p.y[i]);
         if ((west > 0 && k < static_cast<std::uint32_t>(rows_)) || (east > 0 && k >= last_column))
             misplaced = std::min(misplaced, i);
         key_[i] = k;
+        one_mass = one_mass && p.mass[i] == mass;
     }
+    common_mass_ = one_mass ? mass : 0.0;
     if (misplaced < n)
         throw std::logic_error("sorted grid: particle " + std::to_string(p.id[misplaced]) +
                                " sits in an edge column kept for ghosts");
@@ -361,6 +365,8 @@ void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
                                            std::vector<std::uint32_t>(rows + 1, 0)};
     key_.resize(n);
     for (std::size_t i = first; i < n; ++i) {
+        if (p.mass[i] != common_mass_)
+            common_mass_ = 0;
         const std::uint32_t k = key_[i] = key_of(p.x[i], p.y[i]);
         const int b = k < rows ? 0 : (k >= cell0[1] ? 1 : -1);
         if (b < 0 || (b == 0) != (i < first + west_))
@@ -436,7 +442,8 @@ CellSorted::View CellSorted::view() const {
             threads_,
             cost_.data(),
             remote_columns_.data(),
-            fluid_below_.data()};
+            fluid_below_.data(),
+            common_mass_};
 }
 
 namespace {
@@ -974,22 +981,24 @@ struct Neighbours4 {
 // The sums of one particle over its packed candidates, lane l of the 16 taking positions
 // q + l: the same lanes in either build, so the same sums to the rounding of the arithmetic.
 // The AVX2 loops keep the sums in registers, four vectors of four lanes.
-[[gnu::always_inline]] inline double density_rate_sum(const CellSorted::View &v,
-                                                      const PackedCandidates &nbr,
-                                                      const BranchFreeKernel &k, double back,
-                                                      double vxi, double vyi) {
+// With `one_mass` every neighbour's mass is v.common_mass, not gathered.
+template <bool one_mass>
+[[gnu::always_inline]] inline double
+density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const BranchFreeKernel &k,
+                 double back, double vxi, double vyi) {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum[groups] = {};
-    const Lanes4 vxi4 = _mm256_set1_pd(vxi), vyi4 = _mm256_set1_pd(vyi);
+    const Lanes4 vxi4 = _mm256_set1_pd(vxi), vyi4 = _mm256_set1_pd(vyi),
+                 mass = _mm256_set1_pd(v.common_mass);
     const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {
         const std::uint32_t *j = idx + q + 4 * g;
         const Neighbours4 n = load_records(v.records, j);
         sum[g] += density_rate_term(k, back, _mm256_load_pd(sx + q + 4 * g),
                                     _mm256_load_pd(sy + q + 4 * g), vxi4 - n.vx, vyi4 - n.vy,
-                                    gather4(v.mass, j));
+                                    one_mass ? mass : gather4(v.mass, j));
     };
     std::size_t q = 0;
     for (; q + pair_lanes <= nbr.padded; q += pair_lanes)
@@ -1006,28 +1015,29 @@ struct Neighbours4 {
         for (int l = 0; l < pair_lanes; ++l) {
             const std::uint32_t j = idx[q + l];
             drho.v[l] += density_rate_term(k, back, sx[q + l], sy[q + l], vxi - v.vx[j],
-                                           vyi - v.vy[j], v.mass[j]);
+                                           vyi - v.vy[j], one_mass ? v.common_mass : v.mass[j]);
         }
     }
     return drho.total();
 #endif
 }
 
-[[gnu::always_inline]] inline Force<double> force_sum(const CellSorted::View &v,
-                                                      const PackedCandidates &nbr,
-                                                      const ForceConstants &c,
-                                                      const ForceParticle &i) {
+template <bool one_mass>
+[[gnu::always_inline]] inline Force<double>
+force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceConstants &c,
+          const ForceParticle &i) {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum_x[groups] = {}, sum_y[groups] = {};
+    const Lanes4 mass = _mm256_set1_pd(v.common_mass);
     const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {
         const std::uint32_t *j = idx + q + 4 * g;
         const Neighbours4 n = load_records(v.records, j);
         const Force<Lanes4> a =
             force_term(c, i, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g), n.vx,
-                       n.vy, n.rho, n.p_over_rho2, gather4(v.mass, j));
+                       n.vy, n.rho, n.p_over_rho2, one_mass ? mass : gather4(v.mass, j));
         sum_x[g] += a.x;
         sum_y[g] += a.y;
     };
@@ -1045,14 +1055,24 @@ struct Neighbours4 {
 #pragma omp simd
         for (int l = 0; l < pair_lanes; ++l) {
             const std::uint32_t j = idx[q + l];
-            const Force<double> a = force_term(c, i, sx[q + l], sy[q + l], v.vx[j], v.vy[j],
-                                               v.rho[j], v.p_over_rho2[j], v.mass[j]);
+            const Force<double> a =
+                force_term(c, i, sx[q + l], sy[q + l], v.vx[j], v.vy[j], v.rho[j], v.p_over_rho2[j],
+                           one_mass ? v.common_mass : v.mass[j]);
             ax.v[l] += a.x;
             ay.v[l] += a.y;
         }
     }
     return {ax.total(), ay.total()};
 #endif
+}
+
+// density_rate_sum with the mass taken as a constant where every particle has the same one.
+[[gnu::always_inline]] inline double density_rate(const CellSorted::View &v,
+                                                  const PackedCandidates &nbr,
+                                                  const BranchFreeKernel &k, double back,
+                                                  double vxi, double vyi) {
+    return v.common_mass > 0 ? density_rate_sum<true>(v, nbr, k, back, vxi, vyi)
+                             : density_rate_sum<false>(v, nbr, k, back, vxi, vyi);
 }
 
 // A thread's packs for the owned fluid particles of one cell, taken up to batch_size at a time
@@ -1183,7 +1203,7 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                     for (int b = 0; b < n; ++b) {
                         const std::size_t i = batch.self[b];
                         const PackedCandidates &pack = batch.pack[b];
-                        p.drho[v.orig[i]] = density_rate_sum(v, pack, k, back, v.vx[i], v.vy[i]);
+                        p.drho[v.orig[i]] = density_rate(v, pack, k, back, v.vx[i], v.vy[i]);
                         interactions += pack.in_range - 1;
                         remote += pack.remote;
                     }
@@ -1195,7 +1215,7 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                     for (int b = 0; b < n; ++b) {
                         const std::size_t i = batch.self[b];
                         const PackedCandidates &pack = batch.pack[b];
-                        p.drho[v.orig[i]] = density_rate_sum(v, pack, k, back, v.vx[i], v.vy[i]);
+                        p.drho[v.orig[i]] = density_rate(v, pack, k, back, v.vx[i], v.vy[i]);
                         interactions += pack.in_range;
                         remote += pack.remote;
                     }
@@ -1237,8 +1257,10 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
                                                                     r2max, batch.out);
                     for (int b = 0; b < n; ++b) {
                         const std::size_t i = batch.self[b];
-                        const Force<double> a = force_sum(
-                            v, batch.pack[b], c, {v.vx[i], v.vy[i], v.rho[i], v.p_over_rho2[i]});
+                        const ForceParticle fi{v.vx[i], v.vy[i], v.rho[i], v.p_over_rho2[i]};
+                        const Force<double> a = v.common_mass > 0
+                                                    ? force_sum<true>(v, batch.pack[b], c, fi)
+                                                    : force_sum<false>(v, batch.pack[b], c, fi);
                         p.ax[v.orig[i]] = a.x;
                         p.ay[v.orig[i]] = a.y - phys.gravity;
                     }

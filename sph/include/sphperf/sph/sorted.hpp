@@ -97,6 +97,9 @@ public:
             const std::uint32_t *f = fluid_below + static_cast<std::size_t>(col) * (rows + 1);
             return f[row_end] - f[row_begin];
         }
+        // The mass of every particle when they all have one (every setup here), else 0: the
+        // pair loops then take it as a constant instead of gathering it per neighbour.
+        double common_mass;
     };
 
     void update(const Particles &p, const CellWindow &w) { update(p, w, 0, 0); } // sort, copy
@@ -220,6 +223,7 @@ private:
     std::vector<std::uint32_t> fluid_below_;
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
+    double common_mass_ = 0; // View::common_mass
 };
 
 // The neighbourhood Cell+Sorted supplies to the physics: no stored pairs; the counts of the
