@@ -293,8 +293,8 @@ concept OverlapGrid = requires(G g, const G cg, const Particles &p, const CellWi
 // kernel masks out as it masks the particle itself). The force and density loops then run over
 // the pairs that interact only: about half of the 3 x (2 rows_per_cell + 1) / rows_per_cell
 // cells' candidates lie beyond 3h, and the loops are bound by their arithmetic, which a masked
-// lane pays in full. Each thread's scratch for one pass, grown to its largest neighbourhood and
-// reused for every particle.
+// lane pays in full. Each thread's scratch for one pass (one per particle of a cell packed
+// together), grown to its largest neighbourhood and reused for every particle.
 struct PackedCandidates {
     std::vector<std::uint32_t, CacheLineAllocator<std::uint32_t>> index;
     std::vector<double, CacheLineAllocator<double>> dx, dy;
