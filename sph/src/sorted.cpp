@@ -1194,32 +1194,26 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                 const int col = cell / v.rows, row = cell % v.rows;
                 if (!columns.contains(col))
                     continue;
-                const std::size_t first = v.start[cell], end = v.start[cell + 1];
                 // A fluid particle interacts with every particle within 3h, itself included in
-                // the count (subtracted here; its own term is 0).
-                for (std::size_t s = first; const int n = batch.next(v, s, end, true);) {
-                    pack_neighbourhoods<Counted::remote, Partners::all>(v, col, row, batch.self, n,
-                                                                        r2max, batch.out);
-                    for (int b = 0; b < n; ++b) {
-                        const std::size_t i = batch.self[b];
-                        const PackedCandidates &pack = batch.pack[b];
-                        p.drho[v.orig[i]] = density_rate(v, pack, k, back, v.vx[i], v.vy[i]);
-                        interactions += pack.in_range - 1;
-                        remote += pack.remote;
+                // the count (subtracted below; its own term is 0); a wall particle with fluid
+                // particles only, so not with itself.
+                for (const bool fluid : {true, false})
+                    for (std::size_t s = v.start[cell];
+                         const int n = batch.next(v, s, v.start[cell + 1], fluid);) {
+                        if (fluid)
+                            pack_neighbourhoods<Counted::remote, Partners::all>(
+                                v, col, row, batch.self, n, r2max, batch.out);
+                        else
+                            pack_neighbourhoods<Counted::remote, Partners::fluid>(
+                                v, col, row, batch.self, n, r2max, batch.out);
+                        for (int b = 0; b < n; ++b) {
+                            const std::size_t i = batch.self[b];
+                            const PackedCandidates &pack = batch.pack[b];
+                            p.drho[v.orig[i]] = density_rate(v, pack, k, back, v.vx[i], v.vy[i]);
+                            interactions += pack.in_range - (fluid ? 1 : 0);
+                            remote += pack.remote;
+                        }
                     }
-                }
-                // A wall particle with fluid particles only, so not with itself.
-                for (std::size_t s = first; const int n = batch.next(v, s, end, false);) {
-                    pack_neighbourhoods<Counted::remote, Partners::fluid>(v, col, row, batch.self,
-                                                                          n, r2max, batch.out);
-                    for (int b = 0; b < n; ++b) {
-                        const std::size_t i = batch.self[b];
-                        const PackedCandidates &pack = batch.pack[b];
-                        p.drho[v.orig[i]] = density_rate(v, pack, k, back, v.vx[i], v.vy[i]);
-                        interactions += pack.in_range;
-                        remote += pack.remote;
-                    }
-                }
             }
     }
     return {interactions, remote};

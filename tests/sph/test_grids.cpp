@@ -70,6 +70,24 @@ Particles random_configuration(unsigned seed, int n_owned, int n_ghost) {
     return p;
 }
 
+// The candidate ranges [b, e) of sorted positions around the cell that holds sorted position
+// i, columns west to east (the ranges a particle of that cell packs).
+std::vector<std::pair<std::size_t, std::size_t>> ranges_around(const CellSorted::View &v,
+                                                               std::size_t i) {
+    const int cells = v.cols * v.rows;
+    const int cell_i = static_cast<int>(std::upper_bound(v.start, v.start + cells + 1,
+                                                         static_cast<std::uint32_t>(i)) -
+                                        v.start) -
+                       1;
+    const int col = cell_i / v.rows, row = cell_i % v.rows;
+    const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
+    const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
+    std::vector<std::pair<std::size_t, std::size_t>> ranges;
+    for (int c = std::max(col - 1, 0); c <= std::min(col + 1, v.cols - 1); ++c)
+        ranges.emplace_back(v.start[c * v.rows + r0], v.start[c * v.rows + r1 + 1]);
+    return ranges;
+}
+
 template <class G> PairSet search(G &grid, const Particles &p) {
     NeighbourList nl;
     grid.update(p, window);
@@ -264,16 +282,7 @@ TEST(CellSorted, PackedCandidatesAreTheFilteredRangeInOrder) {
     for (std::size_t i = 0; i < p.size(); ++i) {
         if (v.orig[i] >= v.owned)
             continue;
-        const int cells = v.cols * v.rows;
-        const int cell_i = static_cast<int>(std::upper_bound(v.start, v.start + cells + 1,
-                                                             static_cast<std::uint32_t>(i)) -
-                                            v.start) -
-                           1;
-        const int col = cell_i / v.rows, row = cell_i % v.rows;
-        const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
-        const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
-        for (int c = std::max(col - 1, 0); c <= std::min(col + 1, v.cols - 1); ++c) {
-            const std::size_t b = v.start[c * v.rows + r0], e = v.start[c * v.rows + r1 + 1];
+        for (const auto &[b, e] : ranges_around(v, i)) {
             tails += (e - b) % 8 != 0;
             for (const bool fluid_only : {false, true}) {
                 PackedCandidates fast, plain;
@@ -337,20 +346,11 @@ TEST(CellSorted, PackedTogetherIsPackedOneByOne) {
     g.update(p, window);
     const CellSorted::View v = g.view();
     const double r2 = cell * cell;
-    const int cells = v.cols * v.rows;
     std::size_t packed = 0, remote = 0;
     for (int batch = 1; batch <= pack_batch_size; ++batch)
         for (std::size_t i = 0; i + static_cast<std::size_t>(batch) <= p.size(); ++i) {
             // The ranges around sorted position i's cell, for i and the positions after it.
-            const int cell_i = static_cast<int>(std::upper_bound(v.start, v.start + cells + 1,
-                                                                 static_cast<std::uint32_t>(i)) -
-                                                v.start) -
-                               1;
-            const int col = cell_i / v.rows, row = cell_i % v.rows;
-            const int r0 = std::max(row - CellSorted::rows_per_cell, 0);
-            const int r1 = std::min(row + CellSorted::rows_per_cell, v.rows - 1);
-            for (int c = std::max(col - 1, 0); c <= std::min(col + 1, v.cols - 1); ++c) {
-                const std::size_t b = v.start[c * v.rows + r0], e = v.start[c * v.rows + r1 + 1];
+            for (const auto &[b, e] : ranges_around(v, i)) {
                 for (const bool fluid_only : {false, true}) {
                     std::vector<PackedCandidates> together(pack_batch_size), alone(pack_batch_size);
                     std::vector<PackedCandidates *> out;
