@@ -70,6 +70,18 @@ Particles random_configuration(unsigned seed, int n_owned, int n_ghost) {
     return p;
 }
 
+// What the packing tests pack from: random owned particles, walls and ghosts, two owned
+// particles at one position (in range, not packed), sorted.
+struct PackingCase {
+    Particles p = random_configuration(21, 700, 200);
+    CellSorted g;
+    PackingCase() {
+        p.x[10] = p.x[11];
+        p.y[10] = p.y[11];
+        g.update(p, window);
+    }
+};
+
 // The candidate ranges [b, e) of sorted positions around the cell that holds sorted position
 // i, columns west to east (the ranges a particle of that cell packs).
 std::vector<std::pair<std::size_t, std::size_t>> ranges_around(const CellSorted::View &v,
@@ -271,12 +283,9 @@ TEST(CellSorted, DriversMatchTheStoredListDrivers) {
 // bit, and the same counts; with coincident particles (in range, not packed), ghosts (remote)
 // and walls (not packed for a wall's density pass), through whole vectors and tails.
 TEST(CellSorted, PackedCandidatesAreTheFilteredRangeInOrder) {
-    Particles p = random_configuration(21, 700, 200);
-    p.x[10] = p.x[11]; // two owned particles at one position
-    p.y[10] = p.y[11];
-    CellSorted g;
-    g.update(p, window);
-    const CellSorted::View v = g.view();
+    const PackingCase sorted;
+    const Particles &p = sorted.p;
+    const CellSorted::View v = sorted.g.view();
     const double r2 = cell * cell;
     std::size_t packed = 0, coincident = 0, remote = 0, tails = 0;
     for (std::size_t i = 0; i < p.size(); ++i) {
@@ -339,12 +348,9 @@ TEST(CellSorted, PackedCandidatesAreTheFilteredRangeInOrder) {
 // particle's pack is then the one the plain filter gives it alone, positions, separations to
 // the bit and counts, for every batch size, with and without wall candidates.
 TEST(CellSorted, PackedTogetherIsPackedOneByOne) {
-    Particles p = random_configuration(22, 700, 200);
-    p.x[10] = p.x[11]; // two owned particles at one position
-    p.y[10] = p.y[11];
-    CellSorted g;
-    g.update(p, window);
-    const CellSorted::View v = g.view();
+    const PackingCase sorted;
+    const Particles &p = sorted.p;
+    const CellSorted::View v = sorted.g.view();
     const double r2 = cell * cell;
     std::size_t packed = 0, remote = 0;
     for (int batch = 1; batch <= pack_batch_size; ++batch)
