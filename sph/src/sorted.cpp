@@ -856,8 +856,11 @@ void pack_in_range(const CellSorted::View &v, const double *xi, const double *yi
 namespace {
 
 // The pair terms, written once for one lane (T = double: the compiler vectorises the 16-lane
-// loops) and for four (T = Lanes4: the AVX2 loops). Every lane computes finite terms, and the
-// padding and coincident images (separation 0) are multiplied by 0.
+// loops) and for four (T = Lanes4: the AVX2 loops). Every lane computes finite terms, and a
+// padding lane's is a signed zero with no mask: it pairs the particle with itself at separation
+// 0, so its velocity difference, its kernel slope (at r = sqrt(tiny)) and its dx, dy are all
+// exactly 0. A mask (0 or 1) multiplied in gave the same bits and cost three or four
+// instructions per four pairs.
 [[gnu::always_inline]] inline double lane_sqrt(double x) {
     return std::sqrt(x);
 }
@@ -865,8 +868,6 @@ namespace {
     return std::min(x, 0.0);
 }
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
-// A GCC vector (arithmetic, comparisons and ?: work on it), __m256d without its may_alias.
-using Lanes4 = double __attribute__((vector_size(32)));
 [[gnu::always_inline]] inline Lanes4 lane_sqrt(Lanes4 x) {
     return _mm256_sqrt_pd(x);
 }
@@ -880,12 +881,10 @@ using Lanes4 = double __attribute__((vector_size(32)));
 template <class T>
 [[gnu::always_inline]] inline T density_rate_term(const BranchFreeKernel &k, double back, T dx,
                                                   T dy, T dvx, T dvy, T mj) {
-    const T zero{}, one = zero + 1.0;
-    const T act = dx * dx + dy * dy > zero ? one : zero; // 0 for the padding
     const T mx = dx - back * dvx, my = dy - back * dvy;
-    const T r = lane_sqrt(mx * mx + my * my + tiny); // finite, masked
+    const T r = lane_sqrt(mx * mx + my * my + tiny); // finite
     const T f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
-    return act * (mj * f * (dvx * mx + dvy * my));
+    return mj * f * (dvx * mx + dvy * my);
 }
 
 // Particle i's side of the force pass.
@@ -902,12 +901,7 @@ template <class T> struct Force { T x, y; };
 template <class T>
 [[gnu::always_inline]] inline Force<T> force_term(const ForceConstants &c, const ForceParticle &i,
                                                   T dx, T dy, T vxj, T vyj, T rhoj, T prj, T mj) {
-    const T zero{}, one = zero + 1.0;
     const T d2 = dx * dx + dy * dy;
-    // 0 for the padding, at distance 0. A multiplied mask, not a select: GCC turns the select
-    // into a conditional store in the 16-lane loop, which does not vectorise; every term is
-    // finite, so 0 x term adds nothing.
-    const T mask = d2 > zero ? one : zero;
     const T r = lane_sqrt(d2 + tiny);
     const T vdotr = (i.vx - vxj) * dx + (i.vy - vyj) * dy;
     // One division for three quotients, 1/r, 1/(r^2 + eta^2) and 1/(rho_i + rho_j): divisions
@@ -919,7 +913,7 @@ template <class T>
     const T visc = c.visc_coef * lane_min0(vdotr) * (r * inv);
     const T f = c.k.alpha_d_over_h * BranchFreeKernel::slope(r * c.k.inv_h) * (dv * inv);
     const T coef = mj * (i.p_over_rho2 + prj + visc);
-    return {mask * (-coef * f * dx), mask * (-coef * f * dy)};
+    return {-coef * f * dx, -coef * f * dy};
 }
 
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))

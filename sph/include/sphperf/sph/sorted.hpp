@@ -14,6 +14,10 @@
 #include "sphperf/sph/kernel.hpp"
 #include "sphperf/sph/particles.hpp"
 
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
+
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -28,6 +32,12 @@
 namespace sphperf::sph {
 
 struct SortedNeighbours;
+
+#if defined(__AVX2__)
+// Four doubles as a GCC vector (arithmetic, comparisons and ?: work on it): __m256d without its
+// may_alias. The AVX2 pair loops compute on it (sorted.cpp).
+using Lanes4 = double __attribute__((vector_size(32)));
+#endif
 
 // The window columns a physics pass covers: [first, last], or with `outside` every other one
 // (--overlap computes the columns that need no ghost while the ghosts travel, then the rest).
@@ -240,13 +250,17 @@ struct BranchFreeKernel {
     double h, inv_h, alpha_d, alpha_d_over_h;
     explicit BranchFreeKernel(const QuinticKernel &k)
         : h(k.h), inv_h(1.0 / k.h), alpha_d(k.alpha_d), alpha_d_over_h(k.alpha_d / k.h) {}
-    // T: double, or a GCC vector of doubles (the AVX2 pair loops, sorted.cpp).
+    // T: double, or Lanes4 (the AVX2 pair loops, sorted.cpp).
     // max(v, 0) in the form of the max instructions (v > 0 ? v : 0), which GCC emits for
-    // vectors too: `v < 0 ? 0 : v` became a compare and a mask (sph/NOTES.md, session 63).
-    template <class T> static T pos(T v) {
-        const T zero{};
-        return v > zero ? v : zero;
+    // doubles: `v < 0 ? 0 : v` became a compare and a mask (sph/NOTES.md, session 63). For
+    // Lanes4 GCC still emitted a compare and a mask, so the instruction is spelt out; it
+    // returns its second operand unless the first is greater: the same bits.
+    static double pos(double v) { return v > 0.0 ? v : 0.0; }
+#if defined(__AVX2__)
+    static Lanes4 pos(Lanes4 v) {
+        return _mm256_max_pd(v, _mm256_setzero_pd());
     }
+#endif
     // W / alpha_d and its slope d(W / alpha_d)/dq.
     static double shape(double q) {
         const double a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
@@ -266,8 +280,12 @@ struct BranchFreeKernel {
         d -= 75 * (c2 * c2);
         return d;
     }
-    double value(double r) const { return alpha_d * shape(r * inv_h); }
-    double derivative(double r) const { return alpha_d_over_h * slope(r * inv_h); }
+    double value(double r) const {
+        return alpha_d * shape(r * inv_h);
+    }
+    double derivative(double r) const {
+        return alpha_d_over_h * slope(r * inv_h);
+    }
 };
 
 // The grid is the neighbourhood: building it is the sort already done by update().
