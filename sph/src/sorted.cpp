@@ -859,8 +859,9 @@ namespace {
 // loops) and for four (T = Lanes4: the AVX2 loops). Every lane computes finite terms, and a
 // padding lane's is a signed zero with no mask: it pairs the particle with itself at separation
 // 0, so its velocity difference, its kernel slope (at r = sqrt(tiny)) and its dx, dy are all
-// exactly 0. A mask (0 or 1) multiplied in gave the same bits and cost three or four
-// instructions per four pairs.
+// exactly 0. A mask multiplied in cost three or four instructions per four pairs and kept the
+// last product out of the sum's fused multiply-add. With `one_mass` the common mass is folded
+// into the kernel's coefficients (w), else each term takes its neighbour's, mj.
 [[gnu::always_inline]] inline double lane_sqrt(double x) {
     return std::sqrt(x);
 }
@@ -878,13 +879,16 @@ namespace {
 
 // Continuity: m_j W'(r) / r (v_ij . r_ij), at the separation `back` earlier (physics.hpp
 // continuity_term): neighbours by the end of the step, the rate at the step's middle.
-template <class T>
-[[gnu::always_inline]] inline T density_rate_term(const BranchFreeKernel &k, double back, T dx,
-                                                  T dy, T dvx, T dvy, T mj) {
+template <bool one_mass, class T>
+[[gnu::always_inline]] inline T density_rate_term(const BranchFreeKernel::ScaledSlope &w,
+                                                  double inv_h, double back, T dx, T dy, T dvx,
+                                                  T dvy, T mj) {
     const T mx = dx - back * dvx, my = dy - back * dvy;
-    const T r = lane_sqrt(mx * mx + my * my + tiny); // finite
-    const T f = k.alpha_d_over_h * BranchFreeKernel::slope(r * k.inv_h) / r;
-    return mj * f * (dvx * mx + dvy * my);
+    const T r = lane_sqrt(mx * mx + (my * my + tiny)); // finite; tiny in a fused add
+    T f = BranchFreeKernel::slope(r * inv_h, w) / r;
+    if constexpr (!one_mass)
+        f = mj * f;
+    return f * (dvx * mx + dvy * my);
 }
 
 // Particle i's side of the force pass.
@@ -898,11 +902,13 @@ struct ForceConstants {
 template <class T> struct Force { T x, y; };
 
 // Pressure and Monaghan's viscosity: -m_j (P_i / rho_i^2 + P_j / rho_j^2 + Pi_ij) grad W.
-template <class T>
-[[gnu::always_inline]] inline Force<T> force_term(const ForceConstants &c, const ForceParticle &i,
-                                                  T dx, T dy, T vxj, T vyj, T rhoj, T prj, T mj) {
-    const T d2 = dx * dx + dy * dy;
-    const T r = lane_sqrt(d2 + tiny);
+template <bool one_mass, class T>
+[[gnu::always_inline]] inline Force<T>
+force_term(const ForceConstants &c, const BranchFreeKernel::ScaledSlope &w, const ForceParticle &i,
+           T dx, T dy, T vxj, T vyj, T rhoj, T prj, T mj) {
+    // tiny in a fused add: d2 + eta2 below is the same as without it.
+    const T d2 = dx * dx + (dy * dy + tiny);
+    const T r = lane_sqrt(d2);
     const T vdotr = (i.vx - vxj) * dx + (i.vy - vyj) * dy;
     // One division for three quotients, 1/r, 1/(r^2 + eta^2) and 1/(rho_i + rho_j): divisions
     // and the square root are what this loop waits on.
@@ -911,8 +917,10 @@ template <class T>
     // Monaghan's viscosity for approaching pairs only (vdotr < 0): clamping vdotr rather than
     // branching keeps the loop branch-free; receding pairs get 0.
     const T visc = c.visc_coef * lane_min0(vdotr) * (r * inv);
-    const T f = c.k.alpha_d_over_h * BranchFreeKernel::slope(r * c.k.inv_h) * (dv * inv);
-    const T coef = mj * (i.p_over_rho2 + prj + visc);
+    const T f = BranchFreeKernel::slope(r * c.k.inv_h, w) * (dv * inv);
+    T coef = i.p_over_rho2 + prj + visc;
+    if constexpr (!one_mass)
+        coef = mj * coef;
     return {-coef * f * dx, -coef * f * dy};
 }
 
@@ -975,24 +983,26 @@ struct Neighbours4 {
 // The sums of one particle over its packed candidates, lane l of the 16 taking positions
 // q + l: the same lanes in either build, so the same sums to the rounding of the arithmetic.
 // The AVX2 loops keep the sums in registers, four vectors of four lanes.
-// With `one_mass` every neighbour's mass is v.common_mass, not gathered.
+// With `one_mass` every neighbour's mass is v.common_mass, folded into the kernel's
+// coefficients, not gathered.
 template <bool one_mass>
 [[gnu::always_inline]] inline double
 density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const BranchFreeKernel &k,
                  double back, double vxi, double vyi) {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    const BranchFreeKernel::ScaledSlope w(one_mass ? k.alpha_d_over_h * v.common_mass
+                                                   : k.alpha_d_over_h);
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum[groups] = {};
-    const Lanes4 vxi4 = _mm256_set1_pd(vxi), vyi4 = _mm256_set1_pd(vyi),
-                 mass = _mm256_set1_pd(v.common_mass);
+    const Lanes4 vxi4 = _mm256_set1_pd(vxi), vyi4 = _mm256_set1_pd(vyi);
     const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {
         const std::uint32_t *j = idx + q + 4 * g;
         const Neighbours4 n = load_records(v.records, j);
-        sum[g] += density_rate_term(k, back, _mm256_load_pd(sx + q + 4 * g),
-                                    _mm256_load_pd(sy + q + 4 * g), vxi4 - n.vx, vyi4 - n.vy,
-                                    one_mass ? mass : gather4(v.mass, j));
+        sum[g] += density_rate_term<one_mass>(
+            w, k.inv_h, back, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g),
+            vxi4 - n.vx, vyi4 - n.vy, one_mass ? Lanes4{} : gather4(v.mass, j));
     };
     std::size_t q = 0;
     for (; q + pair_lanes <= nbr.padded; q += pair_lanes)
@@ -1008,8 +1018,9 @@ density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const B
 #pragma omp simd
         for (int l = 0; l < pair_lanes; ++l) {
             const std::uint32_t j = idx[q + l];
-            drho.v[l] += density_rate_term(k, back, sx[q + l], sy[q + l], vxi - v.vx[j],
-                                           vyi - v.vy[j], one_mass ? v.common_mass : v.mass[j]);
+            drho.v[l] +=
+                density_rate_term<one_mass>(w, k.inv_h, back, sx[q + l], sy[q + l], vxi - v.vx[j],
+                                            vyi - v.vy[j], one_mass ? 0.0 : v.mass[j]);
         }
     }
     return drho.total();
@@ -1022,16 +1033,17 @@ force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceCon
           const ForceParticle &i) {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    const BranchFreeKernel::ScaledSlope w(one_mass ? c.k.alpha_d_over_h * v.common_mass
+                                                   : c.k.alpha_d_over_h);
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum_x[groups] = {}, sum_y[groups] = {};
-    const Lanes4 mass = _mm256_set1_pd(v.common_mass);
     const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {
         const std::uint32_t *j = idx + q + 4 * g;
         const Neighbours4 n = load_records(v.records, j);
-        const Force<Lanes4> a =
-            force_term(c, i, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g), n.vx,
-                       n.vy, n.rho, n.p_over_rho2, one_mass ? mass : gather4(v.mass, j));
+        const Force<Lanes4> a = force_term<one_mass>(
+            c, w, i, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g), n.vx, n.vy,
+            n.rho, n.p_over_rho2, one_mass ? Lanes4{} : gather4(v.mass, j));
         sum_x[g] += a.x;
         sum_y[g] += a.y;
     };
@@ -1050,8 +1062,8 @@ force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceCon
         for (int l = 0; l < pair_lanes; ++l) {
             const std::uint32_t j = idx[q + l];
             const Force<double> a =
-                force_term(c, i, sx[q + l], sy[q + l], v.vx[j], v.vy[j], v.rho[j], v.p_over_rho2[j],
-                           one_mass ? v.common_mass : v.mass[j]);
+                force_term<one_mass>(c, w, i, sx[q + l], sy[q + l], v.vx[j], v.vy[j], v.rho[j],
+                                     v.p_over_rho2[j], one_mass ? 0.0 : v.mass[j]);
             ax.v[l] += a.x;
             ay.v[l] += a.y;
         }
