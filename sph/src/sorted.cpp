@@ -885,10 +885,13 @@ template <bool one_mass, class T>
                                                   T dvy, T mj) {
     const T mx = dx - back * dvx, my = dy - back * dvy;
     const T r = lane_sqrt(mx * mx + (my * my + tiny)); // finite; tiny in a fused add
-    T f = BranchFreeKernel::slope(r * inv_h, w) / r;
+    // The division by r on v_ij . r_ij, which is ready early, not on the slope: it then runs
+    // beside the slope's polynomial instead of after it.
+    const T along = (dvx * mx + dvy * my) / r;
+    T f = BranchFreeKernel::slope(r * inv_h, w);
     if constexpr (!one_mass)
         f = mj * f;
-    return f * (dvx * mx + dvy * my);
+    return f * along;
 }
 
 // Particle i's side of the force pass.
