@@ -988,15 +988,13 @@ struct Neighbours4 {
 // q + l: the same lanes in either build, so the same sums to the rounding of the arithmetic.
 // The AVX2 loops keep the sums in registers, four vectors of four lanes.
 // With `one_mass` every neighbour's mass is v.common_mass, folded into the kernel's
-// coefficients, not gathered.
+// coefficients (w, pair_slope), not gathered.
 template <bool one_mass>
 [[gnu::always_inline]] inline double
 density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const BranchFreeKernel &k,
-                 double back, double vxi, double vyi) {
+                 const BranchFreeKernel::ScaledSlope &w, double back, double vxi, double vyi) {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-    const BranchFreeKernel::ScaledSlope w(one_mass ? k.alpha_d_over_h * v.common_mass
-                                                   : k.alpha_d_over_h);
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum[groups] = {};
@@ -1034,11 +1032,9 @@ density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const B
 template <bool one_mass>
 [[gnu::always_inline]] inline Force<double>
 force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceConstants &c,
-          const ForceParticle &i) {
+          const BranchFreeKernel::ScaledSlope &w, const ForceParticle &i) {
     const std::uint32_t *idx = nbr.index.data();
     const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
-    const BranchFreeKernel::ScaledSlope w(one_mass ? c.k.alpha_d_over_h * v.common_mass
-                                                   : c.k.alpha_d_over_h);
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 4;
     Lanes4 sum_x[groups] = {}, sum_y[groups] = {};
@@ -1076,13 +1072,20 @@ force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceCon
 #endif
 }
 
-// density_rate_sum with the mass taken as a constant where every particle has the same one.
-[[gnu::always_inline]] inline double density_rate(const CellSorted::View &v,
-                                                  const PackedCandidates &nbr,
-                                                  const BranchFreeKernel &k, double back,
-                                                  double vxi, double vyi) {
-    return v.common_mass > 0 ? density_rate_sum<true>(v, nbr, k, back, vxi, vyi)
-                             : density_rate_sum<false>(v, nbr, k, back, vxi, vyi);
+// The pair loops' kernel coefficients, once per pass: alpha_d / h, times the mass where every
+// particle has the same one (View::common_mass), which the loops then take as a constant.
+BranchFreeKernel::ScaledSlope pair_slope(const CellSorted::View &v, const BranchFreeKernel &k) {
+    return BranchFreeKernel::ScaledSlope(v.common_mass > 0 ? k.alpha_d_over_h * v.common_mass
+                                                           : k.alpha_d_over_h);
+}
+
+// density_rate_sum with the mass taken as a constant where every particle has the same one
+// (w = pair_slope(v, k)).
+[[gnu::always_inline]] inline double
+density_rate(const CellSorted::View &v, const PackedCandidates &nbr, const BranchFreeKernel &k,
+             const BranchFreeKernel::ScaledSlope &w, double back, double vxi, double vyi) {
+    return v.common_mass > 0 ? density_rate_sum<true>(v, nbr, k, w, back, vxi, vyi)
+                             : density_rate_sum<false>(v, nbr, k, w, back, vxi, vyi);
 }
 
 // A thread's packs for the owned fluid particles of one cell, taken up to batch_size at a time
@@ -1192,6 +1195,7 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                                  double back, ColumnSet columns) {
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
+    const BranchFreeKernel::ScaledSlope w = pair_slope(v, k);
     const double r2max = phys.cell_size() * phys.cell_size();
     std::uint64_t interactions = 0, remote = 0;
     nb.grid->start_pass();
@@ -1219,7 +1223,7 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                         for (int b = 0; b < n; ++b) {
                             const std::size_t i = batch.self[b];
                             const PackedCandidates &pack = batch.pack[b];
-                            p.drho[v.orig[i]] = density_rate(v, pack, k, back, v.vx[i], v.vy[i]);
+                            p.drho[v.orig[i]] = density_rate(v, pack, k, w, back, v.vx[i], v.vy[i]);
                             interactions += pack.in_range - (fluid ? 1 : 0);
                             remote += pack.remote;
                         }
@@ -1239,6 +1243,7 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
     const ForceConstants c{k, 0.01 * k.h * k.h, -2 * phys.alpha * phys.c0 * k.h};
+    const BranchFreeKernel::ScaledSlope w = pair_slope(v, k);
     nb.grid->start_pass();
 #pragma omp parallel
     {
@@ -1263,8 +1268,8 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
                         const std::size_t i = batch.self[b];
                         const ForceParticle fi{v.vx[i], v.vy[i], v.rho[i], v.p_over_rho2[i]};
                         const Force<double> a = v.common_mass > 0
-                                                    ? force_sum<true>(v, batch.pack[b], c, fi)
-                                                    : force_sum<false>(v, batch.pack[b], c, fi);
+                                                    ? force_sum<true>(v, batch.pack[b], c, w, fi)
+                                                    : force_sum<false>(v, batch.pack[b], c, w, fi);
                         p.ax[v.orig[i]] = a.x;
                         p.ay[v.orig[i]] = a.y - phys.gravity;
                     }

@@ -269,28 +269,22 @@ struct BranchFreeKernel {
         w += 15 * (c * c * c * c * c);
         return w;
     }
-    template <class T> static T slope(T q) {
-        const T a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
-        // Fourth powers as squares of squares: two multiplications deep, not three (the pair
-        // loops wait on this chain).
-        const T a2 = a * a, b2 = b * b, c2 = c * c;
-        T d{};
-        d -= 5 * (a2 * a2);
-        d += 30 * (b2 * b2);
-        d -= 75 * (c2 * c2);
-        return d;
-    }
     // s x slope(q) with s folded into the three coefficients (the pair loops fold the kernel's
     // alpha_d / h and, where every particle has one, the mass): two multiplications a pair
     // fewer, the same value to rounding.
     struct ScaledSlope {
         double a, b, c; // -5 s, 30 s, -75 s
-        explicit ScaledSlope(double s) : a(-5 * s), b(30 * s), c(-75 * s) {}
+        explicit constexpr ScaledSlope(double s) : a(-5 * s), b(30 * s), c(-75 * s) {}
     };
     template <class T> static T slope(T q, const ScaledSlope &w) {
         const T a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
+        // Fourth powers as squares of squares: two multiplications deep, not three (the pair
+        // loops wait on this chain).
         const T a2 = a * a, b2 = b * b, c2 = c * c;
         return w.a * (a2 * a2) + w.b * (b2 * b2) + w.c * (c2 * c2);
+    }
+    template <class T> static T slope(T q) {
+        return slope(q, ScaledSlope(1.0));
     }
     double value(double r) const {
         return alpha_d * shape(r * inv_h);
