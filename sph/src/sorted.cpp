@@ -223,8 +223,8 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
             vx_[s] = p.vx[i];
             vy_[s] = p.vy[i];
             if constexpr (pair_records) {
-                records_[record_size * s] = p.vx[i];
-                records_[record_size * s + 1] = p.vy[i];
+                records_[record_size * s] = static_cast<PairReal>(p.vx[i]);
+                records_[record_size * s + 1] = static_cast<PairReal>(p.vy[i]);
             }
             mass_[s] = p.mass[i];
             fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
@@ -416,8 +416,8 @@ void CellSorted::refresh_density(const Particles &p, std::size_t from, std::size
         rho_[s] = rho;
         p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
         if constexpr (pair_records) {
-            records_[record_size * s + 2] = rho;
-            records_[record_size * s + 3] = p_over_rho2_[s];
+            records_[record_size * s + 2] = static_cast<PairReal>(rho);
+            records_[record_size * s + 3] = static_cast<PairReal>(p_over_rho2_[s]);
         }
     }
 }
@@ -452,6 +452,8 @@ namespace {
 // no distance but 0, and pairs at distance 0 are masked out):
 // every lane then computes finite terms and no arithmetic is conditional.
 constexpr double tiny = 1e-150;
+// The same in the pair terms' precision (float: above its smallest normal, 1.2e-38).
+template <class E> constexpr E tiny_of = static_cast<E>(std::is_same_v<E, float> ? 1e-30 : tiny);
 
 // Lanes of the sums, fixed so that they do not depend on the ISA. Shepard's range loops: one
 // AVX-512 vector of doubles. The packed pair loops: 16, two vectors' worth of independent pairs
@@ -462,18 +464,18 @@ constexpr double tiny = 1e-150;
 constexpr int lanes = 8;
 constexpr int pair_lanes = 16;
 // The packed lists are padded to whole vectors of the pair loops: 16 lanes for the compiler's
-// loops, a group of four for the AVX2 ones (which run the last block's groups that hold a
-// candidate only).
-constexpr int pad_lanes = pair_records ? 4 : pair_lanes;
+// loops, a group of eight for the AVX2 ones (which run the last block's group of eight if it
+// holds a candidate: a half group of four for the rest measured 1.05x slower, session 67).
+constexpr int pad_lanes = pair_records ? 8 : pair_lanes;
 
 // A sum split over a fixed number of lanes by position within each range (or packed list),
 // then added in a fixed tree (neighbours pairwise): deterministic for given range contents, and
 // the inner loop vectorises.
-template <int N> struct LaneSumOf {
+template <int N, class E = double> struct LaneSumOf {
     static_assert(N > 0 && (N & (N - 1)) == 0, "a power of two");
-    double v[N] = {};
-    double total() const {
-        std::array<double, N> t;
+    E v[N] = {};
+    E total() const {
+        std::array<E, N> t;
         std::copy(std::begin(v), std::end(v), t.begin());
         for (int n = N; n > 1; n /= 2)
             for (int k = 0; k < n / 2; ++k)
@@ -482,7 +484,7 @@ template <int N> struct LaneSumOf {
     }
 };
 using LaneSum = LaneSumOf<lanes>;
-using PairSum = LaneSumOf<pair_lanes>;
+using PairSum = LaneSumOf<pair_lanes, PairReal>;
 
 // Calls body(s, lane) for every sorted position s of the 3 x 3 cells around cell (col, row):
 // columns west to east, each one contiguous range (cells are numbered column by column).
@@ -518,7 +520,7 @@ void pack_range_portable(const CellSorted::View &v, double xi, double yi, double
     // Local pointers: the stores below could otherwise alias the vectors' and the view's own.
     const double *x = v.x, *y = v.y, *fluid = v.fluid, *far = v.remote;
     std::uint32_t *index = out.index.data();
-    double *sx = out.dx.data(), *sy = out.dy.data();
+    PairReal *sx = out.dx.data(), *sy = out.dy.data();
     std::size_t n = out.size;
     std::uint64_t in_range = 0, remote = 0;
     for (std::size_t j = b; j < e; ++j) {
@@ -531,8 +533,8 @@ void pack_range_portable(const CellSorted::View &v, double xi, double yi, double
             remote += in && far[j] > 0;
         // Written always, kept by advancing: no branch on the distance.
         index[n] = static_cast<std::uint32_t>(j);
-        sx[n] = dx;
-        sy[n] = dy;
+        sx[n] = static_cast<PairReal>(dx);
+        sy[n] = static_cast<PairReal>(dy);
         n += in && d2 > 0;
     }
     out.size = n;
@@ -554,12 +556,10 @@ std::uint64_t lane_sum(__m512i v) {
 #endif
 
 #if !(defined(__AVX512F__) && defined(__AVX512VL__)) && defined(__AVX2__) && defined(__FMA__)
-// The tables of the AVX2 packing, by the 4-bit mask of the lanes kept: the 32-bit halves of
-// the kept doubles in order for _mm256_permutevar8x32_ps and the kept lanes' numbers in order
-// (then zeros), side by side so that one address reaches both; and the load masks of a tail of
-// 0-4 lanes.
-struct alignas(64) Compress4Entry {
-    __m256i doubles;
+// The tables of the AVX2 packing, by the 4-bit mask of the lanes kept: the kept lanes' numbers
+// in order (then zeros), which move both the indices and the separations (as floats,
+// _mm_permutevar_ps); and the load masks of a tail of 0-4 lanes.
+struct alignas(16) Compress4Entry {
     __m128i lanes;
 };
 struct Compress4 {
@@ -568,17 +568,11 @@ struct Compress4 {
     Compress4() {
         for (int mask = 0; mask < 16; ++mask) {
             alignas(16) std::array<std::int32_t, 4> lane{};
-            alignas(32) std::array<std::int32_t, 8> half{};
             int kept_lanes = 0;
             for (int l = 0; l < 4; ++l)
-                if (mask & (1 << l)) {
-                    lane[kept_lanes] = l;
-                    half[2 * kept_lanes] = 2 * l;
-                    half[2 * kept_lanes + 1] = 2 * l + 1;
-                    ++kept_lanes;
-                }
+                if (mask & (1 << l))
+                    lane[kept_lanes++] = l;
             kept[mask].lanes = _mm_load_si128(reinterpret_cast<const __m128i *>(lane.data()));
-            kept[mask].doubles = _mm256_load_si256(reinterpret_cast<const __m256i *>(half.data()));
         }
         for (int left = 0; left <= 4; ++left) {
             alignas(32) std::array<std::int64_t, 4> on{};
@@ -607,7 +601,7 @@ template <Counted count, Partners partners, int K>
     __m256d x0[K], y0[K];
     // Local pointers: the stores below could otherwise alias the vectors' own.
     std::uint32_t *index[K];
-    double *sx[K], *sy[K];
+    PairReal *sx[K], *sy[K];
     std::size_t n[K];
     std::uint64_t in_range[K], remote[K];
 #pragma GCC unroll 8
@@ -654,10 +648,8 @@ template <Counted count, Partners partners, int K>
                                       _mm256_and_pd(in, _mm256_cmp_pd(d2, zero, _CMP_GT_OQ)))) &
                                   valid;
             const Compress4Entry &move = compress4.kept[keep];
-            _mm256_storeu_pd(sx[k] + n[k], _mm256_castps_pd(_mm256_permutevar8x32_ps(
-                                               _mm256_castpd_ps(dx), move.doubles)));
-            _mm256_storeu_pd(sy[k] + n[k], _mm256_castps_pd(_mm256_permutevar8x32_ps(
-                                               _mm256_castpd_ps(dy), move.doubles)));
+            _mm_storeu_ps(sx[k] + n[k], _mm_permutevar_ps(_mm256_cvtpd_ps(dx), move.lanes));
+            _mm_storeu_ps(sy[k] + n[k], _mm_permutevar_ps(_mm256_cvtpd_ps(dy), move.lanes));
             _mm_storeu_si128(reinterpret_cast<__m128i *>(index[k] + n[k]),
                              _mm_add_epi32(position, move.lanes));
             n[k] += static_cast<std::size_t>(std::popcount(keep));
@@ -692,7 +684,7 @@ void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, s
     // vector lanes, added up once. GCC 12 vectorises neither the compression nor the tail.
     const double *x = v.x, *y = v.y, *fluid = v.fluid, *far = v.remote;
     std::uint32_t *index = out.index.data();
-    double *sx = out.dx.data(), *sy = out.dy.data();
+    PairReal *sx = out.dx.data(), *sy = out.dy.data();
     const __m512d x0 = _mm512_set1_pd(xi), y0 = _mm512_set1_pd(yi), r2 = _mm512_set1_pd(r2max),
                   zero = _mm512_setzero_pd();
     const __m512i one = _mm512_set1_epi64(1);
@@ -723,8 +715,10 @@ void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, s
             at_zero = _mm512_mask_add_epi64(at_zero, _kandn_mask8(keep, in), at_zero, one);
         _mm256_storeu_si256(reinterpret_cast<__m256i *>(index + n),
                             _mm256_maskz_compress_epi32(keep, position));
-        _mm512_storeu_pd(sx + n, _mm512_maskz_compress_pd(keep, dx));
-        _mm512_storeu_pd(sy + n, _mm512_maskz_compress_pd(keep, dy));
+        // The separations as floats (PairReal). Not _mm512_cvtpd_ps: GCC 12 builds it on an
+        // undefined register and warns (bug 105593), as lane_sum's note says.
+        _mm256_storeu_ps(sx + n, _mm256_maskz_compress_ps(keep, _mm512_maskz_cvtpd_ps(keep, dx)));
+        _mm256_storeu_ps(sy + n, _mm256_maskz_compress_ps(keep, _mm512_maskz_cvtpd_ps(keep, dy)));
         n += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(keep)));
         position = _mm256_add_epi32(position, eight);
     }
@@ -855,36 +849,41 @@ void pack_in_range(const CellSorted::View &v, const double *xi, const double *yi
 
 namespace {
 
-// The pair terms, written once for one lane (T = double: the compiler vectorises the 16-lane
-// loops) and for four (T = Lanes4: the AVX2 loops). Every lane computes finite terms, and a
-// padding lane's is a signed zero with no mask: it pairs the particle with itself at separation
-// 0, so its velocity difference, its kernel slope (at r = sqrt(tiny)) and its dx, dy are all
-// exactly 0. A mask multiplied in cost three or four instructions per four pairs and kept the
-// last product out of the sum's fused multiply-add. With `one_mass` the common mass is folded
-// into the kernel's coefficients (w), else each term takes its neighbour's, mj.
+// The pair terms, written once for one lane (T = PairReal: the compiler vectorises the 16-lane
+// loops) and for eight (T = Lanes8: the AVX2 loops), in the precision E = PairReal. Every lane
+// computes finite terms, and a padding lane's is a signed zero with no mask: it pairs the
+// particle with itself at separation 0, so its velocity difference, its kernel slope (at
+// r = sqrt(tiny)) and its dx, dy are all exactly 0. A mask multiplied in cost three or four
+// instructions per four pairs and kept the last product out of the sum's fused multiply-add.
+// With `one_mass` the common mass is folded into the kernel's coefficients (w), else each term
+// takes its neighbour's, mj.
+[[gnu::always_inline]] inline float lane_sqrt(float x) {
+    return std::sqrt(x);
+}
 [[gnu::always_inline]] inline double lane_sqrt(double x) {
     return std::sqrt(x);
 }
-[[gnu::always_inline]] inline double lane_min0(double x) {
-    return std::min(x, 0.0);
+template <class E> [[gnu::always_inline]] inline E lane_min0(E x) {
+    return std::min(x, E{0});
 }
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
-[[gnu::always_inline]] inline Lanes4 lane_sqrt(Lanes4 x) {
-    return _mm256_sqrt_pd(x);
+[[gnu::always_inline]] inline Lanes8 lane_sqrt(Lanes8 x) {
+    return _mm256_sqrt_ps(x);
 }
-[[gnu::always_inline]] inline Lanes4 lane_min0(Lanes4 x) {
-    return _mm256_min_pd(x, _mm256_setzero_pd());
+[[gnu::always_inline]] inline Lanes8 lane_min0(Lanes8 x) {
+    return _mm256_min_ps(x, _mm256_setzero_ps());
 }
 #endif
 
+using PairSlope = BranchFreeKernel::ScaledSlopeOf<PairReal>;
+
 // Continuity: m_j W'(r) / r (v_ij . r_ij), at the separation `back` earlier (physics.hpp
 // continuity_term): neighbours by the end of the step, the rate at the step's middle.
-template <bool one_mass, class T>
-[[gnu::always_inline]] inline T density_rate_term(const BranchFreeKernel::ScaledSlope &w,
-                                                  double inv_h, double back, T dx, T dy, T dvx,
-                                                  T dvy, T mj) {
+template <bool one_mass, class T, class E>
+[[gnu::always_inline]] inline T density_rate_term(const BranchFreeKernel::ScaledSlopeOf<E> &w,
+                                                  E inv_h, E back, T dx, T dy, T dvx, T dvy, T mj) {
     const T mx = dx - back * dvx, my = dy - back * dvy;
-    const T r = lane_sqrt(mx * mx + (my * my + tiny)); // finite; tiny in a fused add
+    const T r = lane_sqrt(mx * mx + (my * my + tiny_of<E>)); // finite; tiny in a fused add
     // The division by r on v_ij . r_ij, which is ready early, not on the slope: it then runs
     // beside the slope's polynomial instead of after it.
     const T along = (dvx * mx + dvy * my) / r;
@@ -895,22 +894,19 @@ template <bool one_mass, class T>
 }
 
 // Particle i's side of the force pass.
-struct ForceParticle {
-    double vx, vy, rho, p_over_rho2;
-};
-struct ForceConstants {
-    BranchFreeKernel k;
-    double eta2, visc_coef; // 0.01 h^2; -2 alpha c0 h
+template <class E> struct ForceParticle { E vx, vy, rho, p_over_rho2; };
+template <class E> struct ForceConstants {
+    E inv_h, eta2, visc_coef; // 1 / h; 0.01 h^2; -2 alpha c0 h
 };
 template <class T> struct Force { T x, y; };
 
 // Pressure and Monaghan's viscosity: -m_j (P_i / rho_i^2 + P_j / rho_j^2 + Pi_ij) grad W.
-template <bool one_mass, class T>
+template <bool one_mass, class T, class E>
 [[gnu::always_inline]] inline Force<T>
-force_term(const ForceConstants &c, const BranchFreeKernel::ScaledSlope &w, const ForceParticle &i,
-           T dx, T dy, T vxj, T vyj, T rhoj, T prj, T mj) {
+force_term(const ForceConstants<E> &c, const BranchFreeKernel::ScaledSlopeOf<E> &w,
+           const ForceParticle<E> &i, T dx, T dy, T vxj, T vyj, T rhoj, T prj, T mj) {
     // tiny in a fused add: d2 + eta2 below is the same as without it.
-    const T d2 = dx * dx + (dy * dy + tiny);
+    const T d2 = dx * dx + (dy * dy + tiny_of<E>);
     const T r = lane_sqrt(d2);
     const T vdotr = (i.vx - vxj) * dx + (i.vy - vyj) * dy;
     // One division for three quotients, 1/r, 1/(r^2 + eta^2) and 1/(rho_i + rho_j): divisions
@@ -920,99 +916,98 @@ force_term(const ForceConstants &c, const BranchFreeKernel::ScaledSlope &w, cons
     // (P_i / rho_i^2 + P_j / rho_j^2) dv + visc_coef min(vdotr, 0), over r dv: two
     // multiplications fewer than the viscosity and 1/r taken apart.
     const T dv = (d2 + c.eta2) * (i.rho + rhoj);
-    const T inv = 1.0 / (r * dv);
+    const T inv = E{1} / (r * dv);
     T coef = ((i.p_over_rho2 + prj) * dv + c.visc_coef * lane_min0(vdotr)) * inv;
     if constexpr (!one_mass)
         coef = mj * coef;
-    const T f = BranchFreeKernel::slope(r * c.k.inv_h, w) * coef;
+    const T f = BranchFreeKernel::slope(r * c.inv_h, w) * coef;
     return {-f * dx, -f * dy};
 }
 
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
-// PairSum::total() of the 16 lanes held as four groups of four, in registers: the same tree
+static_assert(std::is_same_v<PairReal, float>, "the AVX2 pair loops are written for floats");
+
+// PairSum::total() of the 16 lanes held as two groups of eight, in registers: the same tree
 // (neighbouring lanes, then neighbouring pairs, ...), so the same bits. Through memory and
 // scalar additions it took about 5 % of the run's samples (sph/NOTES.md, session 65).
-[[gnu::always_inline]] inline double tree_sum(const Lanes4 (&g)[4]) {
-    // [g0 l0+l1, g1 l0+l1, g0 l2+l3, g1 l2+l3], then its halves added: [g0, g1] summed.
-    const __m256d a = _mm256_hadd_pd(g[0], g[1]), b = _mm256_hadd_pd(g[2], g[3]);
-    const __m128d g01 = _mm_add_pd(_mm256_castpd256_pd128(a), _mm256_extractf128_pd(a, 1));
-    const __m128d g23 = _mm_add_pd(_mm256_castpd256_pd128(b), _mm256_extractf128_pd(b, 1));
-    const __m128d pairs = _mm_hadd_pd(g01, g23); // [g0 + g1, g2 + g3]
-    return _mm_cvtsd_f64(_mm_add_sd(pairs, _mm_unpackhi_pd(pairs, pairs)));
+[[gnu::always_inline]] inline float tree_sum(const Lanes8 (&g)[2]) {
+    // Per 128-bit half [g0 01, g0 23, g1 01, g1 23 | g0 45, g0 67, g1 45, g1 67] (lane sums),
+    // then [g0 0-3, g1 0-3, .. | g0 4-7, g1 4-7, ..], then the halves added, then g0 + g1.
+    const __m256 a = _mm256_hadd_ps(g[0], g[1]);
+    const __m256 b = _mm256_hadd_ps(a, a);
+    const __m128 c = _mm_add_ps(_mm256_castps256_ps128(b), _mm256_extractf128_ps(b, 1));
+    return _mm_cvtss_f32(_mm_add_ss(c, _mm_movehdup_ps(c)));
 }
 
-// The last block of a packed list holds `left` positions (padded to whole groups of four,
-// fewer than 16): group(g) for its groups g that hold one, each with a constant index, so the
-// sums stay in registers. The padding to 16 lanes this replaces added zeros only, an eighth
-// of the pair loops' lanes on average (sph/NOTES.md, session 65).
-template <class Group>
-[[gnu::always_inline]] inline void tail_groups(std::size_t left, Group group) {
-    switch (left / 4) {
-    case 3:
-        group(2);
-        [[fallthrough]];
-    case 2:
-        group(1);
-        [[fallthrough]];
-    case 1:
-        group(0);
-        break;
-    default:
-        break;
-    }
-}
-
-// Four neighbours' vx, vy, rho and P / rho^2 from their records (View::records): four
-// 32-byte loads and a 4 x 4 transpose, where GCC's gathers take a load and a shuffle a lane.
-struct Neighbours4 {
-    Lanes4 vx, vy, rho, p_over_rho2;
+// Eight neighbours' vx, vy, rho and P / rho^2 from their records (View::records): eight
+// 16-byte loads and a 4 x 4 transpose in each 128-bit half, where GCC's gathers take a load
+// and a shuffle a lane.
+struct Neighbours8 {
+    Lanes8 vx, vy, rho, p_over_rho2;
 };
-[[gnu::always_inline]] inline Neighbours4 load_records(const double *records,
+[[gnu::always_inline]] inline Neighbours8 load_records(const float *records,
                                                        const std::uint32_t *j) {
-    const Lanes4 r0 = _mm256_load_pd(records + 4 * std::size_t{j[0]}),
-                 r1 = _mm256_load_pd(records + 4 * std::size_t{j[1]}),
-                 r2 = _mm256_load_pd(records + 4 * std::size_t{j[2]}),
-                 r3 = _mm256_load_pd(records + 4 * std::size_t{j[3]});
-    const Lanes4 lo01 = _mm256_unpacklo_pd(r0, r1), hi01 = _mm256_unpackhi_pd(r0, r1),
-                 lo23 = _mm256_unpacklo_pd(r2, r3), hi23 = _mm256_unpackhi_pd(r2, r3);
-    return {_mm256_permute2f128_pd(lo01, lo23, 0x20), _mm256_permute2f128_pd(hi01, hi23, 0x20),
-            _mm256_permute2f128_pd(lo01, lo23, 0x31), _mm256_permute2f128_pd(hi01, hi23, 0x31)};
+    const auto two = [&](int lo, int hi) __attribute__((always_inline)) {
+        return _mm256_insertf128_ps(
+            _mm256_castps128_ps256(_mm_load_ps(records + 4 * std::size_t{j[lo]})),
+            _mm_load_ps(records + 4 * std::size_t{j[hi]}), 1);
+    };
+    const __m256 r0 = two(0, 4), r1 = two(1, 5), r2 = two(2, 6), r3 = two(3, 7);
+    const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1),
+                 t2 = _mm256_unpacklo_ps(r2, r3), t3 = _mm256_unpackhi_ps(r2, r3);
+    return {_mm256_shuffle_ps(t0, t2, 0x44), _mm256_shuffle_ps(t0, t2, 0xee),
+            _mm256_shuffle_ps(t1, t3, 0x44), _mm256_shuffle_ps(t1, t3, 0xee)};
 }
-[[gnu::always_inline]] inline Lanes4 gather4(const double *a, const std::uint32_t *j) {
-    return _mm256_setr_pd(a[j[0]], a[j[1]], a[j[2]], a[j[3]]);
+[[gnu::always_inline]] inline Lanes8 gather8(const double *a, const std::uint32_t *j) {
+    return _mm256_setr_ps(static_cast<float>(a[j[0]]), static_cast<float>(a[j[1]]),
+                          static_cast<float>(a[j[2]]), static_cast<float>(a[j[3]]),
+                          static_cast<float>(a[j[4]]), static_cast<float>(a[j[5]]),
+                          static_cast<float>(a[j[6]]), static_cast<float>(a[j[7]]));
 }
 
 #endif
 
+// The pair loops' constants in their precision, once per pass: the kernel's coefficients
+// (alpha_d / h, times the mass where every particle has the same one, View::common_mass, which
+// the loops then take as a constant) and 1 / h.
+struct PairKernel {
+    PairSlope w;
+    PairReal inv_h;
+};
+PairKernel pair_kernel(const CellSorted::View &v, const BranchFreeKernel &k) {
+    return {PairSlope(v.common_mass > 0 ? k.alpha_d_over_h * v.common_mass : k.alpha_d_over_h),
+            static_cast<PairReal>(k.inv_h)};
+}
+
 // The sums of one particle over its packed candidates, lane l of the 16 taking positions
 // q + l: the same lanes in either build, so the same sums to the rounding of the arithmetic.
-// The AVX2 loops keep the sums in registers, four vectors of four lanes.
+// The AVX2 loops keep the sums in registers, two vectors of eight lanes.
 // With `one_mass` every neighbour's mass is v.common_mass, folded into the kernel's
-// coefficients (w, pair_slope), not gathered.
+// coefficients (pair_kernel), not gathered.
 template <bool one_mass>
 [[gnu::always_inline]] inline double
-density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const BranchFreeKernel &k,
-                 const BranchFreeKernel::ScaledSlope &w, double back, double vxi, double vyi) {
+density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const PairKernel &k,
+                 PairReal back, PairReal vxi, PairReal vyi) {
     const std::uint32_t *idx = nbr.index.data();
-    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    const PairReal *sx = nbr.dx.data(), *sy = nbr.dy.data();
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
-    constexpr int groups = pair_lanes / 4;
-    Lanes4 sum[groups] = {};
-    const Lanes4 vxi4 = _mm256_set1_pd(vxi), vyi4 = _mm256_set1_pd(vyi);
+    constexpr int groups = pair_lanes / 8;
+    Lanes8 sum[groups] = {};
+    const Lanes8 vxi8 = _mm256_set1_ps(vxi), vyi8 = _mm256_set1_ps(vyi);
     const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {
-        const std::uint32_t *j = idx + q + 4 * g;
-        const Neighbours4 n = load_records(v.records, j);
+        const std::uint32_t *j = idx + q + 8 * g;
+        const Neighbours8 n = load_records(v.records, j);
         sum[g] += density_rate_term<one_mass>(
-            w, k.inv_h, back, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g),
-            vxi4 - n.vx, vyi4 - n.vy, one_mass ? Lanes4{} : gather4(v.mass, j));
+            k.w, k.inv_h, back, _mm256_load_ps(sx + q + 8 * g), _mm256_load_ps(sy + q + 8 * g),
+            vxi8 - n.vx, vyi8 - n.vy, one_mass ? Lanes8{} : gather8(v.mass, j));
     };
     std::size_t q = 0;
     for (; q + pair_lanes <= nbr.padded; q += pair_lanes)
-#pragma GCC unroll 4 // the groups interleaved: rolled, this lost to the compiler (session 63)
+#pragma GCC unroll 2 // the groups interleaved: rolled, this lost to the compiler (session 63)
         for (int g = 0; g < groups; ++g)
             group(q, g);
-    tail_groups(
-        nbr.padded - q, [&](int g) __attribute__((always_inline)) { group(q, g); });
+    if (nbr.padded - q >= 8) // the last block's group of eight, if it holds one (padding to 8)
+        group(q, 0);
     return tree_sum(sum);
 #else
     PairSum drho;
@@ -1020,9 +1015,10 @@ density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const B
 #pragma omp simd
         for (int l = 0; l < pair_lanes; ++l) {
             const std::uint32_t j = idx[q + l];
-            drho.v[l] +=
-                density_rate_term<one_mass>(w, k.inv_h, back, sx[q + l], sy[q + l], vxi - v.vx[j],
-                                            vyi - v.vy[j], one_mass ? 0.0 : v.mass[j]);
+            drho.v[l] += density_rate_term<one_mass>(
+                k.w, k.inv_h, back, sx[q + l], sy[q + l], vxi - static_cast<PairReal>(v.vx[j]),
+                vyi - static_cast<PairReal>(v.vy[j]),
+                one_mass ? PairReal{} : static_cast<PairReal>(v.mass[j]));
         }
     }
     return drho.total();
@@ -1031,39 +1027,40 @@ density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const B
 
 template <bool one_mass>
 [[gnu::always_inline]] inline Force<double>
-force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceConstants &c,
-          const BranchFreeKernel::ScaledSlope &w, const ForceParticle &i) {
+force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceConstants<PairReal> &c,
+          const PairKernel &k, const ForceParticle<PairReal> &i) {
     const std::uint32_t *idx = nbr.index.data();
-    const double *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    const PairReal *sx = nbr.dx.data(), *sy = nbr.dy.data();
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
-    constexpr int groups = pair_lanes / 4;
-    Lanes4 sum_x[groups] = {}, sum_y[groups] = {};
+    constexpr int groups = pair_lanes / 8;
+    Lanes8 sum_x[groups] = {}, sum_y[groups] = {};
     const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {
-        const std::uint32_t *j = idx + q + 4 * g;
-        const Neighbours4 n = load_records(v.records, j);
-        const Force<Lanes4> a = force_term<one_mass>(
-            c, w, i, _mm256_load_pd(sx + q + 4 * g), _mm256_load_pd(sy + q + 4 * g), n.vx, n.vy,
-            n.rho, n.p_over_rho2, one_mass ? Lanes4{} : gather4(v.mass, j));
+        const std::uint32_t *j = idx + q + 8 * g;
+        const Neighbours8 n = load_records(v.records, j);
+        const Force<Lanes8> a = force_term<one_mass>(
+            c, k.w, i, _mm256_load_ps(sx + q + 8 * g), _mm256_load_ps(sy + q + 8 * g), n.vx, n.vy,
+            n.rho, n.p_over_rho2, one_mass ? Lanes8{} : gather8(v.mass, j));
         sum_x[g] += a.x;
         sum_y[g] += a.y;
     };
     std::size_t q = 0;
     for (; q + pair_lanes <= nbr.padded; q += pair_lanes)
-#pragma GCC unroll 4 // the groups interleaved: rolled, this lost to the compiler (session 63)
+#pragma GCC unroll 2 // the groups interleaved: rolled, this lost to the compiler (session 63)
         for (int g = 0; g < groups; ++g)
             group(q, g);
-    tail_groups(
-        nbr.padded - q, [&](int g) __attribute__((always_inline)) { group(q, g); });
+    if (nbr.padded - q >= 8) // the last block's group of eight, if it holds one (padding to 8)
+        group(q, 0);
     return {tree_sum(sum_x), tree_sum(sum_y)};
 #else
     PairSum ax, ay;
+    const auto real = [](double x) { return static_cast<PairReal>(x); };
     for (std::size_t q = 0; q < nbr.padded; q += pair_lanes) {
 #pragma omp simd
         for (int l = 0; l < pair_lanes; ++l) {
             const std::uint32_t j = idx[q + l];
-            const Force<double> a =
-                force_term<one_mass>(c, w, i, sx[q + l], sy[q + l], v.vx[j], v.vy[j], v.rho[j],
-                                     v.p_over_rho2[j], one_mass ? 0.0 : v.mass[j]);
+            const Force<PairReal> a = force_term<one_mass>(
+                c, k.w, i, sx[q + l], sy[q + l], real(v.vx[j]), real(v.vy[j]), real(v.rho[j]),
+                real(v.p_over_rho2[j]), one_mass ? PairReal{} : real(v.mass[j]));
             ax.v[l] += a.x;
             ay.v[l] += a.y;
         }
@@ -1072,20 +1069,13 @@ force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceCon
 #endif
 }
 
-// The pair loops' kernel coefficients, once per pass: alpha_d / h, times the mass where every
-// particle has the same one (View::common_mass), which the loops then take as a constant.
-BranchFreeKernel::ScaledSlope pair_slope(const CellSorted::View &v, const BranchFreeKernel &k) {
-    return BranchFreeKernel::ScaledSlope(v.common_mass > 0 ? k.alpha_d_over_h * v.common_mass
-                                                           : k.alpha_d_over_h);
-}
-
-// density_rate_sum with the mass taken as a constant where every particle has the same one
-// (w = pair_slope(v, k)).
-[[gnu::always_inline]] inline double
-density_rate(const CellSorted::View &v, const PackedCandidates &nbr, const BranchFreeKernel &k,
-             const BranchFreeKernel::ScaledSlope &w, double back, double vxi, double vyi) {
-    return v.common_mass > 0 ? density_rate_sum<true>(v, nbr, k, w, back, vxi, vyi)
-                             : density_rate_sum<false>(v, nbr, k, w, back, vxi, vyi);
+// density_rate_sum with the mass taken as a constant where every particle has the same one.
+[[gnu::always_inline]] inline double density_rate(const CellSorted::View &v,
+                                                  const PackedCandidates &nbr, const PairKernel &k,
+                                                  PairReal back, double vxi, double vyi) {
+    const auto x = static_cast<PairReal>(vxi), y = static_cast<PairReal>(vyi);
+    return v.common_mass > 0 ? density_rate_sum<true>(v, nbr, k, back, x, y)
+                             : density_rate_sum<false>(v, nbr, k, back, x, y);
 }
 
 // A thread's packs for the owned fluid particles of one cell, taken up to batch_size at a time
@@ -1194,8 +1184,8 @@ void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double 
 DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physics &phys,
                                  double back, ColumnSet columns) {
     const CellSorted::View v = nb.grid->view();
-    const BranchFreeKernel k(phys.kernel());
-    const BranchFreeKernel::ScaledSlope w = pair_slope(v, k);
+    const PairKernel k = pair_kernel(v, BranchFreeKernel(phys.kernel()));
+    const auto back_ = static_cast<PairReal>(back);
     const double r2max = phys.cell_size() * phys.cell_size();
     std::uint64_t interactions = 0, remote = 0;
     nb.grid->start_pass();
@@ -1223,7 +1213,7 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                         for (int b = 0; b < n; ++b) {
                             const std::size_t i = batch.self[b];
                             const PackedCandidates &pack = batch.pack[b];
-                            p.drho[v.orig[i]] = density_rate(v, pack, k, w, back, v.vx[i], v.vy[i]);
+                            p.drho[v.orig[i]] = density_rate(v, pack, k, back_, v.vx[i], v.vy[i]);
                             interactions += pack.in_range - (fluid ? 1 : 0);
                             remote += pack.remote;
                         }
@@ -1240,10 +1230,12 @@ void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
 
 void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, ColumnSet columns) {
     const CellSorted::View v = nb.grid->view();
-    const BranchFreeKernel k(phys.kernel());
+    const BranchFreeKernel kernel(phys.kernel());
+    const PairKernel k = pair_kernel(v, kernel);
     const double r2max = phys.cell_size() * phys.cell_size();
-    const ForceConstants c{k, 0.01 * k.h * k.h, -2 * phys.alpha * phys.c0 * k.h};
-    const BranchFreeKernel::ScaledSlope w = pair_slope(v, k);
+    const auto real = [](double x) { return static_cast<PairReal>(x); };
+    const ForceConstants<PairReal> c{real(kernel.inv_h), real(0.01 * kernel.h * kernel.h),
+                                     real(-2 * phys.alpha * phys.c0 * kernel.h)};
     nb.grid->start_pass();
 #pragma omp parallel
     {
@@ -1266,10 +1258,11 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
                                                                     r2max, batch.out);
                     for (int b = 0; b < n; ++b) {
                         const std::size_t i = batch.self[b];
-                        const ForceParticle fi{v.vx[i], v.vy[i], v.rho[i], v.p_over_rho2[i]};
+                        const ForceParticle<PairReal> fi{real(v.vx[i]), real(v.vy[i]),
+                                                         real(v.rho[i]), real(v.p_over_rho2[i])};
                         const Force<double> a = v.common_mass > 0
-                                                    ? force_sum<true>(v, batch.pack[b], c, w, fi)
-                                                    : force_sum<false>(v, batch.pack[b], c, w, fi);
+                                                    ? force_sum<true>(v, batch.pack[b], c, k, fi)
+                                                    : force_sum<false>(v, batch.pack[b], c, k, fi);
                         p.ax[v.orig[i]] = a.x;
                         p.ay[v.orig[i]] = a.y - phys.gravity;
                     }

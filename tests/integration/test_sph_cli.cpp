@@ -132,7 +132,9 @@ TEST(SphCli, GridsGiveTheSameTrajectory) {
 
 // Cell+Sorted sums every particle's neighbours in one fixed order on one thread, so its
 // trajectory is the same to the last bit at 1 and 2 threads and at 1, 2 and 3 ranks; and it is
-// the physics of the table grid (another summation order: equal to rounding, then chaos).
+// the physics of the table grid (another summation order and single-precision pair terms:
+// equal to rounding, then chaos: the pair counts of the second interval within 1e-4, the
+// exact counts on one configuration are CellSorted.DriversMatchTheStoredListDrivers').
 TEST(SphCli, SortedGridIsIndependentOfThreadsAndRanks) {
     const std::string args = "--grid sorted --steps 400 --interval 200";
     std::vector<nlohmann::json> runs;
@@ -162,7 +164,8 @@ TEST(SphCli, SortedGridIsIndependentOfThreadsAndRanks) {
         pairs += r["pairs"].get<double>();
     for (const auto &r : table["intervals"][1]["ranks"])
         table_pairs += r["pairs"].get<double>();
-    EXPECT_EQ(pairs, table_pairs);
+    EXPECT_GT(pairs, 0);
+    EXPECT_NEAR(pairs, table_pairs, 1e-4 * table_pairs);
     const double a = front.back().get<double>(),
                  b = table["physics"]["front_x"].back().get<double>();
     EXPECT_NEAR(a, b, 1e-6 * b);

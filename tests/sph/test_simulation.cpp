@@ -87,8 +87,12 @@ TYPED_TEST(StillTank, PressureIsHydrostaticAfterSettling) {
 // within 3h with the same pair term. Inviscid and without the Shepard filter, so that the state
 // a step leaves behind is the one its forces were computed from (the viscosity reads the
 // half-step velocity, the filter changes densities after the forces). A pair missed on one side
-// by the neighbour search, or a force that is not antisymmetric, breaks the balance.
+// by the neighbour search, or a force that is not antisymmetric, breaks the balance. Cell+Sorted
+// computes its pair terms in single precision (PairReal), each side of a pair on its own: they
+// cancel to its rounding, measured 2e-7 of the magnitudes (the stored lists' doubles: 1e-12).
 TYPED_TEST(StillTank, FluidMomentumChangesOnlyByWeightAndWalls) {
+    const double rounding =
+        std::is_same_v<TypeParam, CellSorted> && std::is_same_v<PairReal, float> ? 2e-6 : 1e-12;
     Config cfg = base_config(Setup::still, 0.5);
     cfg.steps = 600;
     cfg.interval = 600;
@@ -129,8 +133,8 @@ TYPED_TEST(StillTank, FluidMomentumChangesOnlyByWeightAndWalls) {
         // What is left of the fluid's own forces, relative to the sum of their magnitudes.
         const double left = std::hypot(fx - wx, fy + weight - wy) / scale;
         worst = std::max(worst, left);
-        EXPECT_LT(left, 1e-12) << "step " << step << ": internal forces sum to " << fx - wx << ", "
-                               << fy + weight - wy << " N";
+        EXPECT_LT(left, rounding) << "step " << step << ": internal forces sum to " << fx - wx
+                                  << ", " << fy + weight - wy << " N";
         // The walls do push the water up (the block drops and sloshes, inviscid: from 0.13 to
         // 2.6 times its weight at these steps), so the balance is not vacuous.
         EXPECT_GT(wy, 0.05 * weight) << "step " << step;

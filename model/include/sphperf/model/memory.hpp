@@ -14,9 +14,10 @@ constexpr double bytes_per_interaction = 4 + 2 * 4 + 4;
 // x, y, vx, vy, rho, P/rho^2, mass, fluid and remote flags (9 doubles), original index and
 // cell key.
 // Where sph builds its AVX2 pair loops (sph/sorted.hpp pair_records, the same condition; sph
-// checks the two agree), vx, vy, rho and P/rho^2 once more as a 32-byte record.
+// checks the two agree), vx, vy, rho and P/rho^2 once more as a 16-byte record of floats
+// (the pair terms' precision, sph PairReal).
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
-constexpr double sorted_record_bytes = 4 * 8;
+constexpr double sorted_record_bytes = 4 * 4;
 #else
 constexpr double sorted_record_bytes = 0;
 #endif

@@ -33,11 +33,15 @@ inline constexpr InteractionCost interaction_costs[] = {
 };
 // Cell+Sorted (sph/src/sorted.cpp): no search and no stored pairs; each pass packs a
 // particle's in-range candidates of the three column ranges (2.15 candidates per interaction:
-// 3 x 2.25 cells against a disc of one cell radius; distance and masks, 7 flops each) and runs
-// the branch-free term over the packed pairs only.
+// 3 x 2.25 cells against a disc of one cell radius; distance and masks, 7 flops each, reading
+// 16 bytes of x, y) and runs the branch-free term over the packed pairs only, in single
+// precision (sph PairReal): the pack writes and the term reads a 4-byte index and 4-byte
+// dx, dy; the term reads 4-byte vx, vy (density) or vx, vy, rho, P/rho^2 (momentum) and the
+// 8-byte mass. Bytes: 34.4 + 12 + 4 + 8 + 8 + 8 = 74.4 and 34.4 + 12 + 4 + 8 + 16 + 8 = 82.4
+// (98.4 and 114.4 with double pair terms, before session 67).
 inline constexpr InteractionCost sorted_interaction_costs[] = {
-    {"continuity: pack (2.15 candidates per interaction), term per pair", 61.05, 98.4},
-    {"momentum: pack, term per pair", 75.05, 114.4},
+    {"continuity: pack (2.15 candidates per interaction), term per pair", 61.05, 74.4},
+    {"momentum: pack, term per pair", 75.05, 82.4},
     {"shepard filter (every 30 steps)", 2.9, 2.3},
 };
 // The table of a grid scheme.

@@ -34,10 +34,19 @@ namespace sphperf::sph {
 struct SortedNeighbours;
 
 #if defined(__AVX2__)
-// Four doubles as a GCC vector (arithmetic, comparisons and ?: work on it): __m256d without its
-// may_alias. The AVX2 pair loops compute on it (sorted.cpp).
+// Four doubles and eight floats as GCC vectors (arithmetic, comparisons and ?: work on them):
+// __m256d and __m256 without their may_alias. The AVX2 pair loops compute on Lanes8.
 using Lanes4 = double __attribute__((vector_size(32)));
+using Lanes8 = float __attribute__((vector_size(32)));
 #endif
+
+// The precision of the pair terms: the packed separations, the records, the kernel, the
+// velocity and pressure terms and their per-lane sums. Single: the AVX2 loops then take eight
+// pairs per instruction instead of four, and the dam break's compute fell to about 0.82 of the
+// double loops' on the Zen 3 host (sph/NOTES.md, session 67). Positions, the neighbour
+// decision (distance^2 < (3h)^2), the particles' fields and the integration stay double; the
+// physics tests hold (they and the tolerances this changed: sph/NOTES.md, session 67).
+using PairReal = float;
 
 // The window columns a physics pass covers: [first, last], or with `outside` every other one
 // (--overlap computes the columns that need no ghost while the ghosts travel, then the rest).
@@ -62,13 +71,14 @@ template <class T> struct CacheLineAllocator {
     friend bool operator==(const CacheLineAllocator &, const CacheLineAllocator &) { return true; }
 };
 
-// Where the build has AVX2 but not AVX-512 the pair loops are written for 4-lane vectors
-// (sorted.cpp, the same pair terms as the compiler's 16-lane loops) and read a neighbour's vx,
-// vy, rho and P / rho^2 as one 32-byte record, `View::records`, four of them transposed into
-// four vectors: GCC emulates a gather with a scalar load and a shuffle a lane, and the force
-// pass gathers five fields a pair. On the Zen 3 host of session 63 (dam break, scale 1) this
-// took 13 % off the compute at 1 thread and 12 % at 2 (sph/NOTES.md, session 63). AVX-512
-// builds keep the compiler's loops, measured faster on those hosts.
+// Where the build has AVX2 but not AVX-512 the pair loops are written for 8-lane vectors of
+// floats (sorted.cpp, the same pair terms as the compiler's 16-lane loops) and read a
+// neighbour's vx, vy, rho and P / rho^2 as one 16-byte record, `View::records`, eight of them
+// transposed into four vectors: GCC emulates a gather with a scalar load and a shuffle a lane,
+// and the force pass gathers five fields a pair. On the Zen 3 host of session 63 (dam break,
+// scale 1; then doubles, four a vector) this took 13 % off the compute at 1 thread and 12 % at
+// 2 (sph/NOTES.md, session 63). AVX-512 builds keep the compiler's loops, measured faster on
+// those hosts.
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
 inline constexpr bool pair_records = true;
 #else
@@ -89,9 +99,10 @@ public:
     struct View {
         const double *x, *y, *vx, *vy, *rho, *p_over_rho2, *mass;
         const double *fluid, *remote; // 1 or 0: a fluid particle; not owned by this rank
-        // With pair_records: per sorted position vx, vy, rho, P / rho^2, 32-byte aligned
+        // With pair_records: per sorted position vx, vy, rho, P / rho^2 (PairReal), 16-byte
+        // aligned
         // (rho and P / rho^2 as refresh_density left them); else null.
-        const double *records;
+        const PairReal *records;
         const std::uint32_t *orig;  // sorted position -> index in Particles
         const std::uint32_t *start; // cell -> first sorted position; start[cells] = size
         int cols, rows;
@@ -220,8 +231,8 @@ private:
     CellWindow window_;
     std::size_t west_ = 0, east_ = 0, local_ = 0; // ghost slots kept, particles sorted
     std::vector<double> x_, y_, vx_, vy_, rho_, p_over_rho2_, mass_, fluid_, remote_;
-    static constexpr std::size_t record_size = 4; // View::records' doubles per position
-    std::vector<double, CacheLineAllocator<double>> records_;
+    static constexpr std::size_t record_size = 4; // View::records' values per position
+    std::vector<PairReal, CacheLineAllocator<PairReal>> records_;
     std::vector<std::uint32_t> orig_, start_, key_, blocks_;
     std::vector<std::uint32_t> fill_;        // sort_by_key's next position per cell
     std::vector<std::size_t> block_sizes_;   // sort_by_key's particles per block
@@ -250,15 +261,19 @@ struct BranchFreeKernel {
     double h, inv_h, alpha_d, alpha_d_over_h;
     explicit BranchFreeKernel(const QuinticKernel &k)
         : h(k.h), inv_h(1.0 / k.h), alpha_d(k.alpha_d), alpha_d_over_h(k.alpha_d / k.h) {}
-    // T: double, or Lanes4 (the AVX2 pair loops, sorted.cpp).
+    // T: double or float, or Lanes4 or Lanes8 (the AVX2 pair loops, sorted.cpp).
     // max(v, 0) in the form of the max instructions (v > 0 ? v : 0), which GCC emits for
     // doubles: `v < 0 ? 0 : v` became a compare and a mask (sph/NOTES.md, session 63). For
     // Lanes4 GCC still emitted a compare and a mask, so the instruction is spelt out; it
     // returns its second operand unless the first is greater: the same bits.
     static double pos(double v) { return v > 0.0 ? v : 0.0; }
+    static float pos(float v) { return v > 0.0f ? v : 0.0f; }
 #if defined(__AVX2__)
     static Lanes4 pos(Lanes4 v) {
         return _mm256_max_pd(v, _mm256_setzero_pd());
+    }
+    static Lanes8 pos(Lanes8 v) {
+        return _mm256_max_ps(v, _mm256_setzero_ps());
     }
 #endif
     // W / alpha_d and its slope d(W / alpha_d)/dq.
@@ -272,11 +287,14 @@ struct BranchFreeKernel {
     // s x slope(q) with s folded into the three coefficients (the pair loops fold the kernel's
     // alpha_d / h and, where every particle has one, the mass): two multiplications a pair
     // fewer, the same value to rounding.
-    struct ScaledSlope {
-        double a, b, c; // -5 s, 30 s, -75 s
-        explicit constexpr ScaledSlope(double s) : a(-5 * s), b(30 * s), c(-75 * s) {}
+    // E: the precision of the coefficients (that of the lanes, double or float).
+    template <class E> struct ScaledSlopeOf {
+        E a, b, c; // -5 s, 30 s, -75 s
+        explicit constexpr ScaledSlopeOf(double s)
+            : a(static_cast<E>(-5 * s)), b(static_cast<E>(30 * s)), c(static_cast<E>(-75 * s)) {}
     };
-    template <class T> static T slope(T q, const ScaledSlope &w) {
+    using ScaledSlope = ScaledSlopeOf<double>;
+    template <class T, class E> static T slope(T q, const ScaledSlopeOf<E> &w) {
         const T a = pos(3 - q), b = pos(2 - q), c = pos(1 - q);
         // Fourth powers as squares of squares: two multiplications deep, not three (the pair
         // loops wait on this chain).
@@ -313,17 +331,18 @@ concept OverlapGrid = requires(G g, const G cg, const Particles &p, const CellWi
 
 // One particle's candidates within the support, packed in candidate order (columns west to
 // east, rows bottom to top, ids within a cell): their sorted positions and separations from
-// the particle, then padding to whole vectors (position `self`, separation 0, which every
-// kernel masks out as it masks the particle itself). The force and density loops then run over
-// the pairs that interact only: about half of the 3 x (2 rows_per_cell + 1) / rows_per_cell
-// cells' candidates lie beyond 3h, and the loops are bound by their arithmetic, which a masked
-// lane pays in full. Each thread's scratch for one pass (one per particle of a cell packed
-// together), grown to its largest neighbourhood and reused for every particle.
+// the particle (computed in double, stored as PairReal), then padding to whole vectors (position
+// `self`, separation 0, which every kernel masks out as it masks the particle itself). The force
+// and density loops then run over the pairs that interact only: about half of the 3 x (2
+// rows_per_cell + 1) / rows_per_cell cells' candidates lie beyond 3h, and the loops are bound by
+// their arithmetic, which a masked lane pays in full. Each thread's scratch for one pass (one per
+// particle of a cell packed together), grown to its largest neighbourhood and reused for every
+// particle.
 struct PackedCandidates {
     std::vector<std::uint32_t, CacheLineAllocator<std::uint32_t>> index;
-    std::vector<double, CacheLineAllocator<double>> dx, dy;
+    std::vector<PairReal, CacheLineAllocator<PairReal>> dx, dy;
     std::size_t size = 0;       // packed candidates, without the padding
-    std::size_t padded = 0;     // with it: a multiple of the pair loops' vectors (4 or 16 lanes)
+    std::size_t padded = 0;     // with it: a multiple of the pair loops' vectors (8 or 16 lanes)
     std::uint64_t in_range = 0; // candidates within the support (with those at distance 0)
     std::uint64_t remote = 0;   // of those, the ones this rank does not own
 };
