@@ -1389,8 +1389,8 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
                                  std::copy_n(pack.index.data(), n, st.index.data() + st.used);
                                  std::copy_n(pack.dx.data(), n, st.dx.data() + st.used);
                                  std::copy_n(pack.dy.data(), n, st.dy.data() + st.used);
-                                 sw.offset[i] = st.used;
-                                 sw.length[i] = n;
+                                 sw.offset[i] = static_cast<std::uint32_t>(st.used);
+                                 sw.length[i] = static_cast<std::uint32_t>(n);
                                  st.used = need;
                              });
             update_density(v.start[col * v.rows], v.start[(col + 1) * v.rows]);

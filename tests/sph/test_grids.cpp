@@ -72,6 +72,20 @@ Particles random_configuration(unsigned seed, int n_owned, int n_ghost) {
     return p;
 }
 
+// Random velocities in [-1, 1] m/s and densities 1000 +- 10 (and with `one_mass` false
+// masses 1 +- 0.2) for every particle.
+void stir(Particles &p, unsigned seed, bool one_mass = true) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (std::size_t i = 0; i < p.size(); ++i) {
+        p.vx[i] = u(rng);
+        p.vy[i] = u(rng);
+        p.rho[i] = 1000 + 10 * u(rng);
+        if (!one_mass)
+            p.mass[i] = 1 + 0.2 * u(rng);
+    }
+}
+
 // What the packing tests pack from: random owned particles, walls and ghosts, two owned
 // particles at one position (in range, not packed), sorted.
 struct PackingCase {
@@ -241,15 +255,7 @@ TEST(CellSorted, DriversMatchTheStoredListDrivers) {
         Physics phys;
         phys.h = cell / QuinticKernel::support_factor;
         Particles p = random_configuration(7, 600, 150);
-        std::mt19937 rng(9);
-        std::uniform_real_distribution<double> u(-1, 1);
-        for (std::size_t i = 0; i < p.size(); ++i) {
-            p.vx[i] = u(rng);
-            p.vy[i] = u(rng);
-            p.rho[i] = 1000 + 10 * u(rng);
-            if (!one_mass)
-                p.mass[i] = 1 + 0.2 * u(rng);
-        }
+        stir(p, 9, one_mass);
         equation_of_state(p, phys);
         Particles q = p;
         // Density rates and accelerations as Simulation computes them, through the grid's own
@@ -306,13 +312,7 @@ TEST(CellSorted, SweepIsTheSeparateSteps) {
         SCOPED_TRACE(std::to_string(threads) + " threads");
         omp_set_num_threads(threads);
         Particles p = random_configuration(11, 900, 0);
-        std::mt19937 rng(4);
-        std::uniform_real_distribution<double> u(-1, 1);
-        for (std::size_t i = 0; i < p.size(); ++i) {
-            p.vx[i] = u(rng);
-            p.vy[i] = u(rng);
-            p.rho[i] = 1000 + 10 * u(rng);
-        }
+        stir(p, 4);
         equation_of_state(p, phys);
         Particles q = p;
         CellSorted apart, swept;

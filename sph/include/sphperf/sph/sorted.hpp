@@ -192,7 +192,7 @@ public:
     struct Sweep {
         std::unique_ptr<std::atomic<int>[]> column_done;
         int columns = 0;
-        std::vector<std::size_t> offset, length;
+        std::vector<std::uint32_t> offset, length;
         std::vector<std::array<SweepStore, 3>> stores;
     };
     Sweep &sweep() { return sweep_; }
