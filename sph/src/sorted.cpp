@@ -967,6 +967,16 @@ struct Neighbours8 {
 
 #endif
 
+// A packed list where it lies: a pass's scratch (PackedCandidates) or sweep_forces' store.
+struct PackView {
+    const std::uint32_t *index;
+    const PairReal *dx, *dy;
+    std::size_t padded;
+};
+PackView view_of(const PackedCandidates &p) {
+    return {p.index.data(), p.dx.data(), p.dy.data(), p.padded};
+}
+
 // The pair loops' constants in their precision, once per pass: the kernel's coefficients
 // (alpha_d / h, times the mass where every particle has the same one, View::common_mass, which
 // the loops then take as a constant) and 1 / h.
@@ -985,11 +995,11 @@ PairKernel pair_kernel(const CellSorted::View &v, const BranchFreeKernel &k) {
 // With `one_mass` every neighbour's mass is v.common_mass, folded into the kernel's
 // coefficients (pair_kernel), not gathered.
 template <bool one_mass>
-[[gnu::always_inline]] inline double
-density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const PairKernel &k,
-                 PairReal back, PairReal vxi, PairReal vyi) {
-    const std::uint32_t *idx = nbr.index.data();
-    const PairReal *sx = nbr.dx.data(), *sy = nbr.dy.data();
+[[gnu::always_inline]] inline double density_rate_sum(const CellSorted::View &v,
+                                                      const PackView &nbr, const PairKernel &k,
+                                                      PairReal back, PairReal vxi, PairReal vyi) {
+    const std::uint32_t *idx = nbr.index;
+    const PairReal *sx = nbr.dx, *sy = nbr.dy;
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 8;
     Lanes8 sum[groups] = {};
@@ -1027,10 +1037,10 @@ density_rate_sum(const CellSorted::View &v, const PackedCandidates &nbr, const P
 
 template <bool one_mass>
 [[gnu::always_inline]] inline Force<double>
-force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceConstants<PairReal> &c,
+force_sum(const CellSorted::View &v, const PackView &nbr, const ForceConstants<PairReal> &c,
           const PairKernel &k, const ForceParticle<PairReal> &i) {
-    const std::uint32_t *idx = nbr.index.data();
-    const PairReal *sx = nbr.dx.data(), *sy = nbr.dy.data();
+    const std::uint32_t *idx = nbr.index;
+    const PairReal *sx = nbr.dx, *sy = nbr.dy;
 #if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
     constexpr int groups = pair_lanes / 8;
     Lanes8 sum_x[groups] = {}, sum_y[groups] = {};
@@ -1070,9 +1080,9 @@ force_sum(const CellSorted::View &v, const PackedCandidates &nbr, const ForceCon
 }
 
 // density_rate_sum with the mass taken as a constant where every particle has the same one.
-[[gnu::always_inline]] inline double density_rate(const CellSorted::View &v,
-                                                  const PackedCandidates &nbr, const PairKernel &k,
-                                                  PairReal back, double vxi, double vyi) {
+[[gnu::always_inline]] inline double density_rate(const CellSorted::View &v, const PackView &nbr,
+                                                  const PairKernel &k, PairReal back, double vxi,
+                                                  double vyi) {
     const auto x = static_cast<PairReal>(vxi), y = static_cast<PairReal>(vyi);
     return v.common_mass > 0 ? density_rate_sum<true>(v, nbr, k, back, x, y)
                              : density_rate_sum<false>(v, nbr, k, back, x, y);
@@ -1175,6 +1185,76 @@ void for_each_owned(CellSorted &grid, const CellSorted::View &v, ColumnSet colum
             }
     }
 }
+
+// The pair passes' constants, once per pass.
+struct PassConstants {
+    PairKernel k;
+    ForceConstants<PairReal> force;
+    PairReal back; // the density pass's separations this much earlier (continuity_term)
+    double r2max, gravity;
+};
+PassConstants pass_constants(const CellSorted::View &v, const Physics &phys, double back) {
+    const BranchFreeKernel kernel(phys.kernel());
+    const auto real = [](double x) { return static_cast<PairReal>(x); };
+    return {pair_kernel(v, kernel),
+            {real(kernel.inv_h), real(0.01 * kernel.h * kernel.h),
+             real(-2 * phys.alpha * phys.c0 * kernel.h)},
+            real(back),
+            phys.cell_size() * phys.cell_size(),
+            phys.gravity};
+}
+
+// The density pass over one cell's owned particles, counting the interactions and their
+// remote share; kept(i, pack) sees each fluid particle's pack after its rate. A fluid particle
+// interacts with every particle within 3h, itself included in the count (subtracted here; its
+// own term is 0); a wall particle with fluid particles only, so not with itself.
+template <class Kept>
+[[gnu::always_inline]] inline void
+density_cell(Particles &p, const CellSorted::View &v, const PassConstants &pc, int cell,
+             CellBatch &batch, std::uint64_t &interactions, std::uint64_t &remote, Kept &&kept) {
+    const int col = cell / v.rows, row = cell % v.rows;
+    for (const bool fluid : {true, false})
+        for (std::size_t s = v.start[cell];
+             const int n = batch.next(v, s, v.start[cell + 1], fluid);) {
+            if (fluid)
+                pack_neighbourhoods<Counted::remote, Partners::all>(v, col, row, batch.self, n,
+                                                                    pc.r2max, batch.out);
+            else
+                pack_neighbourhoods<Counted::remote, Partners::fluid>(v, col, row, batch.self, n,
+                                                                      pc.r2max, batch.out);
+            for (int b = 0; b < n; ++b) {
+                const std::size_t i = batch.self[b];
+                const PackedCandidates &pack = batch.pack[b];
+                p.drho[v.orig[i]] = density_rate(v, view_of(pack), pc.k, pc.back, v.vx[i], v.vy[i]);
+                interactions += pack.in_range - (fluid ? 1 : 0);
+                remote += pack.remote;
+                if (fluid)
+                    kept(i, pack);
+            }
+        }
+}
+
+// Fluid particle i's acceleration from its packed neighbours.
+[[gnu::always_inline]] inline void force_on(Particles &p, const CellSorted::View &v,
+                                            const PassConstants &pc, std::size_t i,
+                                            const PackView &pack) {
+    const auto real = [](double x) { return static_cast<PairReal>(x); };
+    const ForceParticle<PairReal> fi{real(v.vx[i]), real(v.vy[i]), real(v.rho[i]),
+                                     real(v.p_over_rho2[i])};
+    const Force<double> a = v.common_mass > 0 ? force_sum<true>(v, pack, pc.force, pc.k, fi)
+                                              : force_sum<false>(v, pack, pc.force, pc.k, fi);
+    p.ax[v.orig[i]] = a.x;
+    p.ay[v.orig[i]] = a.y - pc.gravity;
+}
+
+// Wall particles do not move.
+void still_walls(Particles &p, const CellSorted::View &v, int cell) {
+    for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i)
+        if (v.orig[i] < v.owned && v.fluid[i] == 0) {
+            p.ax[v.orig[i]] = 0;
+            p.ay[v.orig[i]] = 0;
+        }
+}
 } // namespace
 
 void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double back) {
@@ -1184,9 +1264,7 @@ void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double 
 DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physics &phys,
                                  double back, ColumnSet columns) {
     const CellSorted::View v = nb.grid->view();
-    const PairKernel k = pair_kernel(v, BranchFreeKernel(phys.kernel()));
-    const auto back_ = static_cast<PairReal>(back);
-    const double r2max = phys.cell_size() * phys.cell_size();
+    const PassConstants pc = pass_constants(v, phys, back);
     std::uint64_t interactions = 0, remote = 0;
     nb.grid->start_pass();
 #pragma omp parallel reduction(+ : interactions, remote)
@@ -1194,31 +1272,10 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
         CellBatch batch;
         ThreadCells cells(*nb.grid, v, columns);
         for (int c0 = 0, c1 = 0; cells.next(c0, c1);)
-            for (int cell = c0; cell < c1; ++cell) {
-                const int col = cell / v.rows, row = cell % v.rows;
-                if (!columns.contains(col))
-                    continue;
-                // A fluid particle interacts with every particle within 3h, itself included in
-                // the count (subtracted below; its own term is 0); a wall particle with fluid
-                // particles only, so not with itself.
-                for (const bool fluid : {true, false})
-                    for (std::size_t s = v.start[cell];
-                         const int n = batch.next(v, s, v.start[cell + 1], fluid);) {
-                        if (fluid)
-                            pack_neighbourhoods<Counted::remote, Partners::all>(
-                                v, col, row, batch.self, n, r2max, batch.out);
-                        else
-                            pack_neighbourhoods<Counted::remote, Partners::fluid>(
-                                v, col, row, batch.self, n, r2max, batch.out);
-                        for (int b = 0; b < n; ++b) {
-                            const std::size_t i = batch.self[b];
-                            const PackedCandidates &pack = batch.pack[b];
-                            p.drho[v.orig[i]] = density_rate(v, pack, k, back_, v.vx[i], v.vy[i]);
-                            interactions += pack.in_range - (fluid ? 1 : 0);
-                            remote += pack.remote;
-                        }
-                    }
-            }
+            for (int cell = c0; cell < c1; ++cell)
+                if (columns.contains(cell / v.rows))
+                    density_cell(p, v, pc, cell, batch, interactions, remote,
+                                 [](std::size_t, const PackedCandidates &) {});
     }
     return {interactions, remote};
 }
@@ -1230,12 +1287,7 @@ void momentum(Particles &p, SortedNeighbours &nb, const Physics &phys) {
 
 void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, ColumnSet columns) {
     const CellSorted::View v = nb.grid->view();
-    const BranchFreeKernel kernel(phys.kernel());
-    const PairKernel k = pair_kernel(v, kernel);
-    const double r2max = phys.cell_size() * phys.cell_size();
-    const auto real = [](double x) { return static_cast<PairReal>(x); };
-    const ForceConstants<PairReal> c{real(kernel.inv_h), real(0.01 * kernel.h * kernel.h),
-                                     real(-2 * phys.alpha * phys.c0 * kernel.h)};
+    const PassConstants pc = pass_constants(v, phys, 0);
     nb.grid->start_pass();
 #pragma omp parallel
     {
@@ -1246,29 +1298,117 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
                 const int col = cell / v.rows, row = cell % v.rows;
                 if (!columns.contains(col))
                     continue;
-                for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i)
-                    if (v.orig[i] < v.owned && v.fluid[i] == 0) { // wall particles do not move
-                        p.ax[v.orig[i]] = 0;
-                        p.ay[v.orig[i]] = 0;
-                    }
+                still_walls(p, v, cell);
                 // Fluid particles: every j interacts.
                 for (std::size_t s = v.start[cell];
                      const int n = batch.next(v, s, v.start[cell + 1], true);) {
                     pack_neighbourhoods<Counted::no, Partners::all>(v, col, row, batch.self, n,
-                                                                    r2max, batch.out);
-                    for (int b = 0; b < n; ++b) {
-                        const std::size_t i = batch.self[b];
-                        const ForceParticle<PairReal> fi{real(v.vx[i]), real(v.vy[i]),
-                                                         real(v.rho[i]), real(v.p_over_rho2[i])};
-                        const Force<double> a = v.common_mass > 0
-                                                    ? force_sum<true>(v, batch.pack[b], c, k, fi)
-                                                    : force_sum<false>(v, batch.pack[b], c, k, fi);
-                        p.ax[v.orig[i]] = a.x;
-                        p.ay[v.orig[i]] = a.y - phys.gravity;
-                    }
+                                                                    pc.r2max, batch.out);
+                    for (int b = 0; b < n; ++b)
+                        force_on(p, v, pc, batch.self[b], view_of(batch.pack[b]));
                 }
             }
     }
+}
+
+void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, double back, double dt) {
+    CellSorted &grid = *nb.grid;
+    const CellSorted::View v = grid.view();
+    const PassConstants pc = pass_constants(v, phys, back);
+    CellSorted::Sweep &sw = grid.sweep();
+    const std::size_t sorted = v.start[static_cast<std::size_t>(v.cols) * v.rows];
+    sw.offset.resize(sorted);
+    sw.length.resize(sorted);
+    if (sw.columns < v.cols) {
+        sw.column_done = std::make_unique<std::atomic<int>[]>(static_cast<std::size_t>(v.cols));
+        sw.columns = v.cols;
+    }
+    for (int col = 0; col < v.cols; ++col)
+        sw.column_done[col].store(0, std::memory_order_relaxed);
+    const auto update_density = [&](std::size_t from, std::size_t to) {
+        for (std::size_t s = from; s < to; ++s)
+            if (const std::uint32_t i = v.orig[s]; i < v.owned) {
+                p.rho[i] += dt * p.drho[i]; // integrator.hpp advance_density
+                p.p[i] = phys.pressure(p.rho[i]);
+            }
+        grid.refresh_density(p, from, to);
+    };
+    std::uint64_t interactions = 0, remote = 0;
+#pragma omp parallel reduction(+ : interactions, remote)
+    {
+        const int t = omp_get_thread_num(), threads = omp_get_num_threads();
+#pragma omp single
+        sw.stores.resize(static_cast<std::size_t>(threads));
+        // Thread t's columns: its cell block rounded to whole columns (equal shares at another
+        // team size than the blocks').
+        const auto first_column = [&](int u) {
+            if (u == 0)
+                return 0;
+            if (u >= threads)
+                return v.cols;
+            if (threads != v.threads)
+                return static_cast<int>(static_cast<long>(v.cols) * u / threads);
+            const auto rows = static_cast<std::uint32_t>(v.rows);
+            return std::min(static_cast<int>((v.blocks[u] + rows / 2) / rows), v.cols);
+        };
+        const int a = first_column(t), b = std::max(first_column(t + 1), a);
+        std::array<CellSorted::SweepStore, 3> &store = sw.stores[static_cast<std::size_t>(t)];
+        const auto store_of = [&](int col) -> CellSorted::SweepStore & {
+            return store[col == a ? 2 : static_cast<std::size_t>(col % 2)];
+        };
+        const auto wait_for = [&](int col) {
+            if (col >= 0 && col < v.cols)
+                while (sw.column_done[col].load(std::memory_order_acquire) == 0) {
+                }
+        };
+        const auto force_column = [&](int col) {
+            const CellSorted::SweepStore &st = store_of(col);
+            for (int cell = col * v.rows; cell < (col + 1) * v.rows; ++cell) {
+                still_walls(p, v, cell);
+                for (std::size_t i = v.start[cell]; i < v.start[cell + 1]; ++i)
+                    if (v.orig[i] < v.owned && v.fluid[i] > 0)
+                        force_on(p, v, pc, i,
+                                 {st.index.data() + sw.offset[i], st.dx.data() + sw.offset[i],
+                                  st.dy.data() + sw.offset[i], sw.length[i]});
+            }
+        };
+        CellBatch batch;
+        for (int col = a; col < b; ++col) {
+            CellSorted::SweepStore &st = store_of(col);
+            st.used = 0;
+            for (int cell = col * v.rows; cell < (col + 1) * v.rows; ++cell)
+                density_cell(p, v, pc, cell, batch, interactions, remote,
+                             [&](std::size_t i, const PackedCandidates &pack) {
+                                 const std::size_t n = pack.padded, need = st.used + n;
+                                 if (st.index.size() < need) {
+                                     const std::size_t room = std::bit_ceil(need);
+                                     st.index.resize(room);
+                                     st.dx.resize(room);
+                                     st.dy.resize(room);
+                                 }
+                                 std::copy_n(pack.index.data(), n, st.index.data() + st.used);
+                                 std::copy_n(pack.dx.data(), n, st.dx.data() + st.used);
+                                 std::copy_n(pack.dy.data(), n, st.dy.data() + st.used);
+                                 sw.offset[i] = static_cast<std::uint32_t>(st.used);
+                                 sw.length[i] = static_cast<std::uint32_t>(n);
+                                 st.used = need;
+                             });
+            update_density(v.start[col * v.rows], v.start[(col + 1) * v.rows]);
+            sw.column_done[col].store(1, std::memory_order_release);
+            if (col - 1 > a)
+                force_column(col - 1);
+        }
+        if (b - 1 > a) {
+            wait_for(b);
+            force_column(b - 1);
+        }
+        if (b > a) {
+            wait_for(a - 1);
+            wait_for(a + 1);
+            force_column(a);
+        }
+    }
+    nb.counts = DensityCounts{interactions, remote}.counts();
 }
 
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {

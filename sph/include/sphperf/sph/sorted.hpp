@@ -180,6 +180,25 @@ public:
     void start_pass();
     bool next_cells(int thread, std::uint32_t &first, std::uint32_t &last);
 
+    // sweep_forces' scratch, kept across steps (sorted.cpp): per column, a flag set once its
+    // density pass and density update are done; per sorted position, where the fluid
+    // particle's packed neighbours lie in its thread's store; per thread, the packs of two
+    // columns in turn and those of its first column (whose force pass comes last).
+    struct SweepStore {
+        std::vector<std::uint32_t, CacheLineAllocator<std::uint32_t>> index;
+        std::vector<PairReal, CacheLineAllocator<PairReal>> dx, dy;
+        std::size_t used = 0;
+    };
+    struct Sweep {
+        std::unique_ptr<std::atomic<int>[]> column_done;
+        int columns = 0;
+        std::vector<std::uint32_t> offset, length;
+        std::vector<std::array<SweepStore, 3>> stores;
+    };
+    Sweep &sweep() { return sweep_; }
+    // refresh_density for sorted positions [from, to) only.
+    void refresh_density(const Particles &p, std::size_t from, std::size_t to);
+
 private:
     int first_sorted_cell(int window_cell) const {
         return (window_cell % cols_) * rows_ + (window_cell / cols_) * rows_per_cell;
@@ -191,8 +210,6 @@ private:
     // partners in the columns holding some only, and a wall particle looks at fluid only.
     void copy_fields(const Particles &p, std::size_t from, std::size_t to, int first_column,
                      int last_column);
-    // refresh_density's copy of sorted positions [from, to).
-    void refresh_density(const Particles &p, std::size_t from, std::size_t to);
     // Stable counting sort of [first, last) by key_: starts[c] becomes the first position of
     // cell c (cells + 1 entries, counted from `base`), out[starts[c]...] its indices in order.
     void sort_by_key(std::size_t first, std::size_t last, std::size_t base,
@@ -245,6 +262,7 @@ private:
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
     double common_mass_ = 0; // View::common_mass
+    Sweep sweep_;
 };
 
 // The neighbourhood Cell+Sorted supplies to the physics: no stored pairs; the counts of the
@@ -388,5 +406,15 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
                                  double back, ColumnSet cols);
 void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, ColumnSet cols);
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys);
+// Continuity, the density advance (rho += dt drho, integrator.hpp advance_density), the
+// equation of state and the forces in one sweep over the columns, for a rank without ghosts or
+// mirrors: column c's density pass, then its densities and pressures, then the force pass of
+// column c - 1, whose neighbours (c - 2 to c) have theirs by then, from the packs its density
+// pass kept (the step moves no particle between the passes). Each thread sweeps its cell block
+// rounded to whole columns; its first column's force pass comes last, once the thread before
+// has flagged its last column's densities. Every sum is the passes' own: bitwise the same as
+// continuity, advance_density, equation_of_state and momentum apart (tested), while the force
+// pass packs nothing and the passes read what the step has just touched.
+void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, double back, double dt);
 
 } // namespace sphperf::sph
