@@ -130,17 +130,62 @@ void CellSorted::cut_blocks() {
     threads_ = threads;
 }
 
-void CellSorted::start_pass() {
+void CellSorted::reset_queues(int per_block) {
     for (int t = 0; t < queue_count_; ++t) {
-        const auto first = static_cast<std::uint64_t>(t) * chunks_per_block;
-        queues_[static_cast<std::size_t>(t)].range.store(first | (first + chunks_per_block) << 32,
-                                                         std::memory_order_relaxed);
+        const auto first = static_cast<std::uint64_t>(t) * static_cast<std::uint64_t>(per_block);
+        queues_[static_cast<std::size_t>(t)].range.store(
+            first | (first + static_cast<std::uint64_t>(per_block)) << 32,
+            std::memory_order_relaxed);
     }
 }
 
+void CellSorted::start_pass() {
+    reset_queues(chunks_per_block);
+}
+
 bool CellSorted::next_cells(int thread, std::uint32_t &first, std::uint32_t &last) {
+    return take_chunk(chunk_bounds_, thread, first, last);
+}
+
+void CellSorted::start_sweep() {
+    const auto rows = static_cast<std::uint32_t>(rows_);
+    const auto column_of_block = [&](int t) {
+        if (t == 0)
+            return 0;
+        if (t >= threads_)
+            return cols_;
+        return std::min(static_cast<int>((blocks_[static_cast<std::size_t>(t)] + rows / 2) / rows),
+                        cols_);
+    };
+    constexpr auto per_block = static_cast<std::size_t>(column_chunks_per_block);
+    column_bounds_.resize(static_cast<std::size_t>(threads_) * per_block + 1);
+    for (int t = 0; t < threads_; ++t) {
+        const int a = column_of_block(t), b = std::max(column_of_block(t + 1), a);
+        const auto cost_at = [&](int col) { return cost_[static_cast<std::size_t>(col) * rows]; };
+        const std::uint64_t c0 = cost_at(a), c1 = cost_at(b);
+        const std::size_t k0 = static_cast<std::size_t>(t) * per_block;
+        int col = a;
+        for (std::size_t c = 0; c < per_block; ++c) {
+            // The first column whose prefix reaches the chunk's share (cost_ is a prefix sum).
+            const std::uint64_t target = c0 + (c1 - c0) * c / per_block;
+            while (col < b && cost_at(col) < target)
+                ++col;
+            column_bounds_[k0 + c] = static_cast<std::uint32_t>(c == 0 ? a : col);
+        }
+    }
+    column_bounds_.back() = static_cast<std::uint32_t>(cols_);
+    reset_queues(column_chunks_per_block);
+}
+
+bool CellSorted::next_columns(int thread, std::uint32_t &first, std::uint32_t &last) {
+    return take_chunk(column_bounds_, thread, first, last, sweep_from_back);
+}
+
+bool CellSorted::take_chunk(const std::vector<std::uint32_t> &bounds, int thread,
+                            std::uint32_t &first, std::uint32_t &last, bool own_from_back) {
     // Takes chunk [front] (own == true) or [back - 1] of a queue; false when it is empty.
     auto take = [&](int t, bool own) {
+        own = own && !own_from_back;
         std::atomic<std::uint64_t> &q = queues_[static_cast<std::size_t>(t)].range;
         std::uint64_t r = q.load(std::memory_order_relaxed);
         for (;;) {
@@ -151,8 +196,8 @@ bool CellSorted::next_cells(int thread, std::uint32_t &first, std::uint32_t &las
             if (q.compare_exchange_weak(r, next, std::memory_order_acq_rel,
                                         std::memory_order_relaxed)) {
                 const std::size_t k = own ? front : back - 1;
-                first = chunk_bounds_[k];
-                last = chunk_bounds_[k + 1];
+                first = bounds[k];
+                last = bounds[k + 1];
                 return true;
             }
         }
@@ -1255,6 +1300,21 @@ void still_walls(Particles &p, const CellSorted::View &v, int cell) {
             p.ay[v.orig[i]] = 0;
         }
 }
+
+// The force pass over one cell: its walls stay still, its fluid particles' neighbours are
+// packed (a batch at a time) and summed.
+[[gnu::always_inline]] inline void force_cell(Particles &p, const CellSorted::View &v,
+                                              const PassConstants &pc, int cell, CellBatch &batch) {
+    const int col = cell / v.rows, row = cell % v.rows;
+    still_walls(p, v, cell);
+    // Fluid particles: every j interacts.
+    for (std::size_t s = v.start[cell]; const int n = batch.next(v, s, v.start[cell + 1], true);) {
+        pack_neighbourhoods<Counted::no, Partners::all>(v, col, row, batch.self, n, pc.r2max,
+                                                        batch.out);
+        for (int b = 0; b < n; ++b)
+            force_on(p, v, pc, batch.self[b], view_of(batch.pack[b]));
+    }
+}
 } // namespace
 
 void continuity(Particles &p, SortedNeighbours &nb, const Physics &phys, double back) {
@@ -1295,18 +1355,8 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
         ThreadCells cells(*nb.grid, v, columns);
         for (int c0 = 0, c1 = 0; cells.next(c0, c1);)
             for (int cell = c0; cell < c1; ++cell) {
-                const int col = cell / v.rows, row = cell % v.rows;
-                if (!columns.contains(col))
-                    continue;
-                still_walls(p, v, cell);
-                // Fluid particles: every j interacts.
-                for (std::size_t s = v.start[cell];
-                     const int n = batch.next(v, s, v.start[cell + 1], true);) {
-                    pack_neighbourhoods<Counted::no, Partners::all>(v, col, row, batch.self, n,
-                                                                    pc.r2max, batch.out);
-                    for (int b = 0; b < n; ++b)
-                        force_on(p, v, pc, batch.self[b], view_of(batch.pack[b]));
-                }
+                if (columns.contains(cell / v.rows))
+                    force_cell(p, v, pc, cell, batch);
             }
     }
 }
@@ -1333,35 +1383,53 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
             }
         grid.refresh_density(p, from, to);
     };
+    const auto rows = static_cast<std::size_t>(v.rows);
+    grid.start_sweep();
     std::uint64_t interactions = 0, remote = 0;
 #pragma omp parallel reduction(+ : interactions, remote)
     {
         const int t = omp_get_thread_num(), threads = omp_get_num_threads();
+        const double start = omp_get_wtime();
+        double waited = 0;
+        std::uint64_t cost = 0;
 #pragma omp single
-        sw.stores.resize(static_cast<std::size_t>(threads));
-        // Thread t's columns: its cell block rounded to whole columns (equal shares at another
-        // team size than the blocks').
-        const auto first_column = [&](int u) {
-            if (u == 0)
-                return 0;
-            if (u >= threads)
-                return v.cols;
-            if (threads != v.threads)
-                return static_cast<int>(static_cast<long>(v.cols) * u / threads);
-            const auto rows = static_cast<std::uint32_t>(v.rows);
-            return std::min(static_cast<int>((v.blocks[u] + rows / 2) / rows), v.cols);
+        sw.threads.resize(static_cast<std::size_t>(threads));
+        CellSorted::SweepThread &mine = sw.threads[static_cast<std::size_t>(t)];
+        mine.waiting.clear();
+        // Columns in chunks (CellSorted::next_columns), or with another team size than the
+        // blocks were cut for, an equal share each.
+        const bool chunked = threads == v.threads;
+        bool share_taken = false;
+        const auto next = [&](int &first, int &last) {
+            std::uint32_t c0 = 0, c1 = 0;
+            if (chunked) {
+                if (!grid.next_columns(t, c0, c1))
+                    return false;
+            } else {
+                if (share_taken)
+                    return false;
+                share_taken = true;
+                c0 = static_cast<std::uint32_t>(static_cast<long>(v.cols) * t / threads);
+                c1 = static_cast<std::uint32_t>(static_cast<long>(v.cols) * (t + 1) / threads);
+            }
+            first = static_cast<int>(c0);
+            last = static_cast<int>(c1);
+            cost += v.cost[last * rows] - v.cost[first * rows];
+            return true;
         };
-        const int a = first_column(t), b = std::max(first_column(t + 1), a);
-        std::array<CellSorted::SweepStore, 3> &store = sw.stores[static_cast<std::size_t>(t)];
+        // Columns taken in a row form a run: the force pass of each follows the density pass
+        // of the next, reading the packs where the density pass left them, stores 0 and 1 in
+        // turn. The thread's first column keeps its packs in store 2: its west neighbour is
+        // most often the last column of the thread before, done at the end.
+        int run_first = -1, run_last = -1, kept = -1;
         const auto store_of = [&](int col) -> CellSorted::SweepStore & {
-            return store[col == a ? 2 : static_cast<std::size_t>(col % 2)];
+            return mine.stores[col == kept ? 2 : static_cast<std::size_t>(col % 2)];
         };
-        const auto wait_for = [&](int col) {
-            if (col >= 0 && col < v.cols)
-                while (sw.column_done[col].load(std::memory_order_acquire) == 0) {
-                }
+        const auto done = [&](int col) {
+            return col < 0 || col >= v.cols ||
+                   sw.column_done[col].load(std::memory_order_acquire) != 0;
         };
-        const auto force_column = [&](int col) {
+        const auto force_stored = [&](int col) {
             const CellSorted::SweepStore &st = store_of(col);
             for (int cell = col * v.rows; cell < (col + 1) * v.rows; ++cell) {
                 still_walls(p, v, cell);
@@ -1372,41 +1440,72 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
                                   st.dy.data() + sw.offset[i], sw.length[i]});
             }
         };
+        // A column whose neighbours are not both done waits for the end (its packs are
+        // overwritten by then, except the kept column's).
+        const auto force_or_wait = [&](int col) {
+            if (done(col - 1) && done(col + 1))
+                force_stored(col);
+            else
+                mine.waiting.push_back(col);
+        };
+        const auto close_run = [&] {
+            if (run_first >= 0)
+                force_or_wait(run_last); // the first one too when the run has one column
+        };
         CellBatch batch;
-        for (int col = a; col < b; ++col) {
-            CellSorted::SweepStore &st = store_of(col);
-            st.used = 0;
-            for (int cell = col * v.rows; cell < (col + 1) * v.rows; ++cell)
-                density_cell(p, v, pc, cell, batch, interactions, remote,
-                             [&](std::size_t i, const PackedCandidates &pack) {
-                                 const std::size_t n = pack.padded, need = st.used + n;
-                                 if (st.index.size() < need) {
-                                     const std::size_t room = std::bit_ceil(need);
-                                     st.index.resize(room);
-                                     st.dx.resize(room);
-                                     st.dy.resize(room);
-                                 }
-                                 std::copy_n(pack.index.data(), n, st.index.data() + st.used);
-                                 std::copy_n(pack.dx.data(), n, st.dx.data() + st.used);
-                                 std::copy_n(pack.dy.data(), n, st.dy.data() + st.used);
-                                 sw.offset[i] = static_cast<std::uint32_t>(st.used);
-                                 sw.length[i] = static_cast<std::uint32_t>(n);
-                                 st.used = need;
-                             });
-            update_density(v.start[col * v.rows], v.start[(col + 1) * v.rows]);
-            sw.column_done[col].store(1, std::memory_order_release);
-            if (col - 1 > a)
-                force_column(col - 1);
+        for (int c0 = 0, c1 = 0; next(c0, c1);) {
+            if (c0 == c1)
+                continue;
+            if (run_first < 0 || c0 != run_last + 1) {
+                close_run();
+                if (run_first < 0)
+                    kept = c0;
+                run_first = c0;
+            }
+            for (int col = c0; col < c1; ++col) {
+                CellSorted::SweepStore &st = store_of(col);
+                st.used = 0;
+                for (int cell = col * v.rows; cell < (col + 1) * v.rows; ++cell)
+                    density_cell(p, v, pc, cell, batch, interactions, remote,
+                                 [&](std::size_t i, const PackedCandidates &pack) {
+                                     const std::size_t n = pack.padded, need = st.used + n;
+                                     if (st.index.size() < need) {
+                                         const std::size_t room = std::bit_ceil(need);
+                                         st.index.resize(room);
+                                         st.dx.resize(room);
+                                         st.dy.resize(room);
+                                     }
+                                     std::copy_n(pack.index.data(), n, st.index.data() + st.used);
+                                     std::copy_n(pack.dx.data(), n, st.dx.data() + st.used);
+                                     std::copy_n(pack.dy.data(), n, st.dy.data() + st.used);
+                                     sw.offset[i] = static_cast<std::uint32_t>(st.used);
+                                     sw.length[i] = static_cast<std::uint32_t>(n);
+                                     st.used = need;
+                                 });
+                update_density(v.start[col * rows], v.start[(col + 1) * rows]);
+                sw.column_done[col].store(1, std::memory_order_release);
+                run_last = col;
+                if (col - 1 > run_first)
+                    force_stored(col - 1); // both its neighbours are this run's
+                else if (col - 1 == run_first)
+                    force_or_wait(col - 1);
+            }
         }
-        if (b - 1 > a) {
-            wait_for(b);
-            force_column(b - 1);
+        close_run();
+        // Every column's density pass is taken by now, so each wait ends.
+        for (const int col : mine.waiting) {
+            const double from = omp_get_wtime();
+            while (!done(col - 1) || !done(col + 1)) {
+            }
+            waited += omp_get_wtime() - from;
+            if (col == kept)
+                force_stored(col);
+            else
+                for (int cell = col * v.rows; cell < (col + 1) * v.rows; ++cell)
+                    force_cell(p, v, pc, cell, batch);
         }
-        if (b > a) {
-            wait_for(a - 1);
-            wait_for(a + 1);
-            force_column(a);
-        }
+        if (chunked)
+            grid.add_pass_time(t, omp_get_wtime() - start - waited, cost);
     }
     nb.counts = DensityCounts{interactions, remote}.counts();
 }

@@ -179,21 +179,36 @@ public:
     static constexpr int chunks_per_block = 32;
     void start_pass();
     bool next_cells(int thread, std::uint32_t &first, std::uint32_t &last);
+    // sweep_forces' columns, handed out the same way: each block rounded to whole columns, cut
+    // into `column_chunks_per_block` chunks of equal cost (fewer columns than cells: a chunk
+    // taken by another thread costs the sweep a fresh pack of its two edge columns).
+    // start_sweep() before the sweep's parallel region; next_columns gives [first, last).
+    static constexpr int column_chunks_per_block = 8;
+    void start_sweep();
+    bool next_columns(int thread, std::uint32_t &first, std::uint32_t &last);
+    // For tests: every thread takes its own columns' chunks from the back too, as a thief
+    // does, so each chunk starts a run of its own whatever the timing.
+    bool sweep_from_back = false;
 
     // sweep_forces' scratch, kept across steps (sorted.cpp): per column, a flag set once its
     // density pass and density update are done; per sorted position, where the fluid
     // particle's packed neighbours lie in its thread's store; per thread, the packs of two
-    // columns in turn and those of its first column (whose force pass comes last).
+    // columns in turn and those of its first column (whose force pass comes last), and the
+    // columns whose force pass waits for a neighbour column (packed afresh then).
     struct SweepStore {
         std::vector<std::uint32_t, CacheLineAllocator<std::uint32_t>> index;
         std::vector<PairReal, CacheLineAllocator<PairReal>> dx, dy;
         std::size_t used = 0;
     };
+    struct SweepThread {
+        std::array<SweepStore, 3> stores;
+        std::vector<int> waiting;
+    };
     struct Sweep {
         std::unique_ptr<std::atomic<int>[]> column_done;
         int columns = 0;
         std::vector<std::uint32_t> offset, length;
-        std::vector<std::array<SweepStore, 3>> stores;
+        std::vector<SweepThread> threads;
     };
     Sweep &sweep() { return sweep_; }
     // refresh_density for sorted positions [from, to) only.
@@ -237,6 +252,12 @@ private:
     // chunks_per_block + c. A thread's queue packs its first chunk not taken (low 32 bits) and
     // its end (high 32 bits): the owner advances the first, a thief lowers the end.
     std::vector<std::uint32_t> chunk_bounds_;
+    std::vector<std::uint32_t> column_bounds_; // the same for start_sweep, in columns
+    // Takes a chunk of bounds (chunk_bounds_ or column_bounds_, as the queues were reset): the
+    // thread's own from the front, or the others' from their back ends; false when none is left.
+    bool take_chunk(const std::vector<std::uint32_t> &bounds, int thread, std::uint32_t &first,
+                    std::uint32_t &last, bool own_from_back = false);
+    void reset_queues(int per_block);
     struct alignas(64) ChunkQueue { // one cache line each: mostly its owner's
         std::atomic<std::uint64_t> range{0};
     };
