@@ -385,9 +385,18 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         // The measured tables are by payload: the largest of this rank's four, in particles.
         const double most =
             std::max({l.export_east, l.export_west, in_from_west, in_from_east, 0.0});
-        // `follows`: the ghosts, packed right after the migration (within the cores the
-        // exchange benchmark's following table costs them; ExchangeModel::app_shift_seconds).
-        auto exchange = [&](double per_particle, bool follows) {
+        // `since`: the share of the busy compute between the shift before and this one. Within
+        // the cores the ghosts, packed right after the migration, follow it (the exchange
+        // benchmark's following table costs them; ExchangeModel::app_shift_seconds); the
+        // migration and the density refresh come after the shares of the step the calibration
+        // runs measured before them (segment_shares, per grid and thread count: about a third
+        // and two thirds on the stored-list grids; on Cell+Sorted, whose sweep exchanges the
+        // densities after all but the ghosts' neighbour columns' forces, nearly all and
+        // nearly nothing), else half a step each.
+        const auto share_before = [&](std::size_t segment) {
+            return c.segment_shares ? (*c.segment_shares)[segment] : 1 / blocking_shifts_per_step;
+        };
+        auto exchange = [&](double per_particle, double since) {
             // One MPI_Sendrecv: both directions travel at once, it lasts the longer one.
             auto sendrecv = [&](int to, double out_b, int from, double in_b) {
                 return std::max(to >= 0 && to < P ? message(r, to, out_b) : 0.0,
@@ -403,9 +412,7 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
             if (!set)
                 return hockney;
             // Above the cores the turn of a descheduled neighbour decides, as inline.
-            const double since_any = set->load() > 1 ? gap
-                                     : follows       ? 0.0
-                                                     : busy / blocking_shifts_per_step;
+            const double since_any = set->load() > 1 ? gap : busy * since;
             const double measured =
                 ExchangeModel::app_shift_seconds(*set, since_any, busy, most * per_particle);
             // A shift that leaves the node lasts at least its network messages.
@@ -427,12 +434,15 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
                 exposed += message(r - 1, r, in_from_west * per_particle);
             if (east)
                 exposed += message(r + 1, r, in_from_east * per_particle);
-            const double full = std::max(exchange(per_particle, false), exposed);
+            const double full =
+                std::max(exchange(per_particle, 1 / blocking_shifts_per_step), exposed);
             return std::max(exposed, full - behind);
         };
-        s.comm_s = exchange(0.0, false) +
-                   (c.overlap ? overlapped(c.record_bytes) + overlapped(density_bytes)
-                              : exchange(c.record_bytes, true) + exchange(density_bytes, false));
+        // (--overlap runs do not sweep: their migration stays at half a step, as before.)
+        s.comm_s = c.overlap ? exchange(0.0, 1 / blocking_shifts_per_step) +
+                                   overlapped(c.record_bytes) + overlapped(density_bytes)
+                             : exchange(0.0, share_before(0)) + exchange(c.record_bytes, 0.0) +
+                                   exchange(density_bytes, share_before(2));
     }
     // --time-sharing-overhead replay: one node, one-thread ranks bound round-robin: the step,
     // each rank's transfers and waits from the step replayed (who runs while whom waits).

@@ -1361,7 +1361,8 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
     }
 }
 
-void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, double back, double dt) {
+void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, double back, double dt,
+                  const std::function<void()> &ghost_densities) {
     CellSorted &grid = *nb.grid;
     const CellSorted::View v = grid.view();
     const PassConstants pc = pass_constants(v, phys, back);
@@ -1384,6 +1385,10 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
         grid.refresh_density(p, from, to);
     };
     const auto rows = static_cast<std::size_t>(v.rows);
+    const auto held = [&](int col) { // a neighbour holds ghosts, or the column itself
+        const auto remote = [&](int c) { return c >= 0 && c < v.cols && v.remote_columns[c] != 0; };
+        return remote(col - 1) || remote(col) || remote(col + 1);
+    };
     grid.start_sweep();
     std::uint64_t interactions = 0, remote = 0;
 #pragma omp parallel reduction(+ : interactions, remote)
@@ -1396,6 +1401,7 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
         sw.threads.resize(static_cast<std::size_t>(threads));
         CellSorted::SweepThread &mine = sw.threads[static_cast<std::size_t>(t)];
         mine.waiting.clear();
+        mine.held.clear();
         // Columns in chunks (CellSorted::next_columns), or with another team size than the
         // blocks were cut for, an equal share each.
         const bool chunked = threads == v.threads;
@@ -1440,17 +1446,19 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
                                   st.dy.data() + sw.offset[i], sw.length[i]});
             }
         };
-        // A column whose neighbours are not both done waits for the end (its packs are
-        // overwritten by then, except the kept column's).
-        const auto force_or_wait = [&](int col) {
-            if (done(col - 1) && done(col + 1))
+        // A column whose neighbours are not both done waits for the end, one beside ghosts
+        // for their densities (their packs are overwritten by then, except the kept column's).
+        const auto settle = [&](int col, bool neighbours_done) {
+            if (held(col))
+                mine.held.push_back(col);
+            else if (neighbours_done || (done(col - 1) && done(col + 1)))
                 force_stored(col);
             else
                 mine.waiting.push_back(col);
         };
         const auto close_run = [&] {
             if (run_first >= 0)
-                force_or_wait(run_last); // the first one too when the run has one column
+                settle(run_last, false); // the first one too when the run has one column
         };
         CellBatch batch;
         for (int c0 = 0, c1 = 0; next(c0, c1);) {
@@ -1485,10 +1493,8 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
                 update_density(v.start[col * rows], v.start[(col + 1) * rows]);
                 sw.column_done[col].store(1, std::memory_order_release);
                 run_last = col;
-                if (col - 1 > run_first)
-                    force_stored(col - 1); // both its neighbours are this run's
-                else if (col - 1 == run_first)
-                    force_or_wait(col - 1);
+                if (col - 1 >= run_first)
+                    settle(col - 1, col - 1 > run_first); // then both neighbours are this run's
             }
         }
         close_run();
@@ -1508,6 +1514,26 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
             grid.add_pass_time(t, omp_get_wtime() - start - waited, cost);
     }
     nb.counts = DensityCounts{interactions, remote}.counts();
+    // The ghosts' densities (an exchange: outside the threads), then the columns beside them.
+    if (ghost_densities)
+        ghost_densities();
+    bool any_held = false;
+    for (const CellSorted::SweepThread &u : sw.threads)
+        any_held = any_held || !u.held.empty();
+    if (!any_held)
+        return;
+    for (int col = 0; col < v.cols; ++col)
+        if (v.remote_columns[col] != 0)
+            grid.refresh_density(p, v.start[col * rows], v.start[(col + 1) * rows]);
+#pragma omp parallel
+    {
+        CellBatch batch;
+        const auto n = static_cast<std::size_t>(omp_get_num_threads());
+        for (auto u = static_cast<std::size_t>(omp_get_thread_num()); u < sw.threads.size(); u += n)
+            for (const int col : sw.threads[u].held)
+                for (int cell = col * v.rows; cell < (col + 1) * v.rows; ++cell)
+                    force_cell(p, v, pc, cell, batch);
+    }
 }
 
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {

@@ -303,6 +303,10 @@ TEST(CellSorted, DriversMatchTheStoredListDrivers) {
 // sweep over the columns, each particle's sums the passes' own: bitwise the same rates,
 // densities, pressures, accelerations and counts as the four steps apart, at 1 to 3 threads
 // (each thread's cell block rounded to columns, its first column's forces last).
+// Simulation sweeps where the grid's neighbourhood offers it, and only there.
+static_assert(SweepingGrid<CellSorted>);
+static_assert(!SweepingGrid<CellList> && !SweepingGrid<CellTable>);
+
 TEST(CellSorted, SweepIsTheSeparateSteps) {
     Physics phys;
     phys.h = cell / QuinticKernel::support_factor;

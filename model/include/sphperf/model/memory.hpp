@@ -21,9 +21,9 @@ constexpr double sorted_record_bytes = 4 * 4;
 #else
 constexpr double sorted_record_bytes = 0;
 #endif
-// A rank without ghosts also keeps, per sorted position, where its packed neighbours lie
-// between its density and force passes (sph sweep_forces: offset and length, 4 bytes each);
-// counted on every rank, an upper bound by 8 bytes where there are ghosts.
+// Each rank also keeps, per sorted position, where its packed neighbours lie between its
+// density and force passes (sph sweep_forces: offset and length, 4 bytes each; every rank
+// sweeps since session 68, --overlap runs excepted, for which it is an upper bound by 8 bytes).
 constexpr double sorted_bytes_per_particle =
     bytes_per_particle - 4 + 9 * 8 + 4 + 4 + sorted_record_bytes + 2 * 4;
 

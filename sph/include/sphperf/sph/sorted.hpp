@@ -23,6 +23,7 @@
 #include <atomic>
 #include <concepts>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <new>
 #include <string_view>
@@ -202,7 +203,7 @@ public:
     };
     struct SweepThread {
         std::array<SweepStore, 3> stores;
-        std::vector<int> waiting;
+        std::vector<int> waiting, held; // for a neighbour's flag; for the ghosts' densities
     };
     struct Sweep {
         std::unique_ptr<std::atomic<int>[]> column_done;
@@ -428,14 +429,25 @@ DensityCounts continuity_columns(Particles &p, SortedNeighbours &nb, const Physi
 void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, ColumnSet cols);
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys);
 // Continuity, the density advance (rho += dt drho, integrator.hpp advance_density), the
-// equation of state and the forces in one sweep over the columns, for a rank without ghosts or
-// mirrors: column c's density pass, then its densities and pressures, then the force pass of
-// column c - 1, whose neighbours (c - 2 to c) have theirs by then, from the packs its density
-// pass kept (the step moves no particle between the passes). Each thread sweeps its cell block
-// rounded to whole columns; its first column's force pass comes last, once the thread before
-// has flagged its last column's densities. Every sum is the passes' own: bitwise the same as
-// continuity, advance_density, equation_of_state and momentum apart (tested), while the force
-// pass packs nothing and the passes read what the step has just touched.
-void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, double back, double dt);
+// equation of state and the forces in one sweep over the columns, for a rank without mirrors:
+// column c's density pass, then its densities and pressures, then the force pass of column
+// c - 1, whose neighbours (c - 2 to c) have theirs by then, from the packs its density pass
+// kept (the step moves no particle between the passes). The threads take the columns in
+// chunks (CellSorted::next_columns); a column whose neighbour another thread sweeps waits for
+// its flag, at the end. The columns next to ghosts (View::remote_columns) wait for
+// `ghost_densities`, called once every density pass is done, outside the threads: it must
+// bring the ghosts' densities and pressures (Domain::refresh_ghost_density, then the equation
+// of state); their force passes follow. Every sum is the passes' own: bitwise the same as
+// continuity, advance_density, the ghost refresh, equation_of_state and momentum apart
+// (tested), while the force pass packs almost nothing and reads what the step just touched.
+void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, double back, double dt,
+                  const std::function<void()> &ghost_densities = {});
+
+// A grid whose neighbourhood has such a sweep (Simulation::compute_forces uses it where it can).
+template <class G>
+concept SweepingGrid = requires(Particles &p, typename G::Neighbours &nb, const Physics &phys,
+                                const std::function<void()> &f) {
+    sweep_forces(p, nb, phys, 0.0, 0.0, f);
+};
 
 } // namespace sphperf::sph
