@@ -438,11 +438,12 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
                 std::max(exchange(per_particle, 1 / blocking_shifts_per_step), exposed);
             return std::max(exposed, full - behind);
         };
-        // (--overlap runs do not sweep: their migration stays at half a step, as before.)
-        s.comm_s = c.overlap ? exchange(0.0, 1 / blocking_shifts_per_step) +
-                                   overlapped(c.record_bytes) + overlapped(density_bytes)
-                             : exchange(0.0, share_before(0)) + exchange(c.record_bytes, 0.0) +
-                                   exchange(density_bytes, share_before(2));
+        // (An --overlap run's migration follows its edge columns' forces and the kicks, as a
+        // swept blocking run's follows the held columns' forces and the kicks.)
+        s.comm_s =
+            exchange(0.0, share_before(0)) +
+            (c.overlap ? overlapped(c.record_bytes) + overlapped(density_bytes)
+                       : exchange(c.record_bytes, 0.0) + exchange(density_bytes, share_before(2)));
     }
     // --time-sharing-overhead replay: one node, one-thread ranks bound round-robin: the step,
     // each rank's transfers and waits from the step replayed (who runs while whom waits).

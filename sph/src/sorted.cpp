@@ -451,8 +451,15 @@ void CellSorted::refresh_density(const Particles &p) {
 }
 
 void CellSorted::refresh_ghost_density(const Particles &p) {
-    refresh_density(p, 0, west_);
-    refresh_density(p, west_ + local_, west_ + local_ + east_);
+    if (west_ > 0 || east_ > 0) { // --overlap: the slots kept at the two ends
+        refresh_density(p, 0, west_);
+        refresh_density(p, west_ + local_, west_ + local_ + east_);
+        return;
+    }
+    const auto rows = static_cast<std::size_t>(rows_);
+    for (std::size_t col = 0; col < static_cast<std::size_t>(cols_); ++col)
+        if (remote_columns_[col] != 0) // sorted among the others: their whole columns
+            refresh_density(p, start_[col * rows], start_[(col + 1) * rows]);
 }
 
 void CellSorted::refresh_density(const Particles &p, std::size_t from, std::size_t to) {
@@ -1361,8 +1368,42 @@ void momentum_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, C
     }
 }
 
+namespace {
+// Density advance, equation of state and sorted-copy refresh of the owned particles at sorted
+// positions [from, to) (integrator.hpp advance_density, physics.hpp equation_of_state).
+void advance_positions(Particles &p, CellSorted &grid, const CellSorted::View &v,
+                       const Physics &phys, double dt, std::size_t from, std::size_t to) {
+    for (std::size_t s = from; s < to; ++s)
+        if (const std::uint32_t i = v.orig[s]; i < v.owned) {
+            p.rho[i] += dt * p.drho[i];
+            p.p[i] = phys.pressure(p.rho[i]);
+        }
+    grid.refresh_density(p, from, to);
+}
+} // namespace
+
+void advance_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, double dt,
+                     ColumnSet columns) {
+    const CellSorted::View v = nb.grid->view();
+    const auto rows = static_cast<std::size_t>(v.rows);
+    for (int col = 0; col < v.cols; ++col)
+        if (columns.contains(col))
+            advance_positions(p, *nb.grid, v, phys, dt, v.start[col * rows],
+                              v.start[(col + 1) * rows]);
+}
+
 void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, double back, double dt,
                   const std::function<void()> &ghost_densities) {
+    nb.counts = sweep_columns(p, nb, phys, back, dt, ColumnSet{}).counts();
+    if (ghost_densities)
+        ghost_densities();
+    force_held_columns(p, nb, phys);
+}
+
+DensityCounts sweep_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, double back,
+                            double dt, ColumnSet columns) {
+    if (columns.outside)
+        throw std::logic_error("sweep_columns: the columns must be one range");
     CellSorted &grid = *nb.grid;
     const CellSorted::View v = grid.view();
     const PassConstants pc = pass_constants(v, phys, back);
@@ -1376,17 +1417,13 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
     }
     for (int col = 0; col < v.cols; ++col)
         sw.column_done[col].store(0, std::memory_order_relaxed);
-    const auto update_density = [&](std::size_t from, std::size_t to) {
-        for (std::size_t s = from; s < to; ++s)
-            if (const std::uint32_t i = v.orig[s]; i < v.owned) {
-                p.rho[i] += dt * p.drho[i]; // integrator.hpp advance_density
-                p.p[i] = phys.pressure(p.rho[i]);
-            }
-        grid.refresh_density(p, from, to);
-    };
     const auto rows = static_cast<std::size_t>(v.rows);
-    const auto held = [&](int col) { // a neighbour holds ghosts, or the column itself
-        const auto remote = [&](int c) { return c >= 0 && c < v.cols && v.remote_columns[c] != 0; };
+    const int first = std::max(columns.first, 0), last = std::min(columns.last, v.cols - 1);
+    // Its forces wait: a neighbour holds ghosts, or the column itself, or lies out of the sweep.
+    const auto held = [&](int col) {
+        const auto remote = [&](int c) {
+            return c >= 0 && c < v.cols && (v.remote_columns[c] != 0 || c < first || c > last);
+        };
         return remote(col - 1) || remote(col) || remote(col + 1);
     };
     grid.start_sweep();
@@ -1406,7 +1443,7 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
         // blocks were cut for, an equal share each.
         const bool chunked = threads == v.threads;
         bool share_taken = false;
-        const auto next = [&](int &first, int &last) {
+        const auto next = [&](int &from, int &to) {
             std::uint32_t c0 = 0, c1 = 0;
             if (chunked) {
                 if (!grid.next_columns(t, c0, c1))
@@ -1418,9 +1455,10 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
                 c0 = static_cast<std::uint32_t>(static_cast<long>(v.cols) * t / threads);
                 c1 = static_cast<std::uint32_t>(static_cast<long>(v.cols) * (t + 1) / threads);
             }
-            first = static_cast<int>(c0);
-            last = static_cast<int>(c1);
-            cost += v.cost[last * rows] - v.cost[first * rows];
+            // Clipped to the swept columns (an empty chunk is skipped).
+            from = std::clamp(static_cast<int>(c0), first, last + 1);
+            to = std::clamp(static_cast<int>(c1), first, last + 1);
+            cost += v.cost[to * rows] - v.cost[from * rows];
             return true;
         };
         // Columns taken in a row form a run: the force pass of each follows the density pass
@@ -1490,7 +1528,8 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
                                      sw.length[i] = static_cast<std::uint32_t>(n);
                                      st.used = need;
                                  });
-                update_density(v.start[col * rows], v.start[(col + 1) * rows]);
+                advance_positions(p, grid, v, phys, dt, v.start[col * rows],
+                                  v.start[(col + 1) * rows]);
                 sw.column_done[col].store(1, std::memory_order_release);
                 run_last = col;
                 if (col - 1 >= run_first)
@@ -1513,18 +1552,18 @@ void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, doubl
         if (chunked)
             grid.add_pass_time(t, omp_get_wtime() - start - waited, cost);
     }
-    nb.counts = DensityCounts{interactions, remote}.counts();
-    // The ghosts' densities (an exchange: outside the threads), then the columns beside them.
-    if (ghost_densities)
-        ghost_densities();
+    return {interactions, remote};
+}
+
+void force_held_columns(Particles &p, SortedNeighbours &nb, const Physics &phys) {
+    const CellSorted::Sweep &sw = nb.grid->sweep();
     bool any_held = false;
     for (const CellSorted::SweepThread &u : sw.threads)
         any_held = any_held || !u.held.empty();
     if (!any_held)
         return;
-    for (int col = 0; col < v.cols; ++col)
-        if (v.remote_columns[col] != 0)
-            grid.refresh_density(p, v.start[col * rows], v.start[(col + 1) * rows]);
+    const CellSorted::View v = nb.grid->view();
+    const PassConstants pc = pass_constants(v, phys, 0);
 #pragma omp parallel
     {
         CellBatch batch;

@@ -190,6 +190,7 @@ template <CellGrid Grid> void Simulation<Grid>::compute_forces() {
                     dom_.refresh_ghost_density(p_);
                     exchange_s = wall_seconds() - t0;
                     equation_of_state(p_, phys_, dom_.ghosts_begin(), p_.size());
+                    grid_.refresh_ghost_density(p_);
                 });
             }
             step_timers_.add(Phase::comp, -exchange_s);
@@ -226,10 +227,19 @@ void Simulation<Grid>::compute_forces_overlapped() requires OverlapGrid<Grid> {
     }
     const ColumnSet inner = grid_.columns_without_ghosts(), edges = inner.complement();
     const double back = 0.5 * cfg_.dt; // the rate at the middle of the drift (compute_forces)
+    // Without mirrors the interior is swept as compute_forces sweeps (both passes; the forces of
+    // its columns beside the edges wait), else only its density pass runs here.
+    bool sweep = false;
+    if constexpr (SweepingGrid<Grid>)
+        sweep = mirror_sources_.empty();
     DensityCounts counts;
     {
         ScopedPhase t(step_timers_, Phase::comp);
-        counts = continuity_columns(p_, nb_, phys_, back, inner);
+        if constexpr (SweepingGrid<Grid>)
+            if (sweep)
+                counts = sweep_columns(p_, nb_, phys_, back, cfg_.dt, inner);
+        if (!sweep)
+            counts = continuity_columns(p_, nb_, phys_, back, inner);
     }
     const ExchangeCounts g = dom_.finish_ghosts(p_);
     last_ghosts_ = g.received;
@@ -243,15 +253,25 @@ void Simulation<Grid>::compute_forces_overlapped() requires OverlapGrid<Grid> {
         ScopedPhase t(step_timers_, Phase::comp);
         counts += continuity_columns(p_, nb_, phys_, back, edges);
         nb_.counts = counts.counts();
-        advance_density(p_, cfg_.dt);
-        refresh_mirrors(p_, p_.owned(), mirror_sources_);
+        if constexpr (SweepingGrid<Grid>)
+            if (sweep)
+                advance_columns(p_, nb_, phys_, cfg_.dt, edges);
+        if (!sweep) {
+            advance_density(p_, cfg_.dt);
+            refresh_mirrors(p_, p_.owned(), mirror_sources_);
+        }
     }
     dom_.begin_ghost_density(p_);
     {
         ScopedPhase t(step_timers_, Phase::comp);
-        equation_of_state(p_, phys_, 0, first_ghost);
-        grid_.refresh_density(p_); // the ghosts' entries are stale until their refresh below
-        momentum_columns(p_, nb_, phys_, inner);
+        if constexpr (SweepingGrid<Grid>)
+            if (sweep)
+                force_held_columns(p_, nb_, phys_); // the interior's beside the edges
+        if (!sweep) {
+            equation_of_state(p_, phys_, 0, first_ghost);
+            grid_.refresh_density(p_); // the ghosts' entries are stale until their refresh below
+            momentum_columns(p_, nb_, phys_, inner);
+        }
     }
     dom_.finish_ghost_density(p_);
     ScopedPhase t(step_timers_, Phase::comp);

@@ -155,7 +155,8 @@ public:
     // Copies density and P / rho^2, which the sort leaves out: they change between the sort and
     // the passes that read them (continuity, equation of state, Shepard).
     void refresh_density(const Particles &p);
-    // The same for the ghost positions only (their density came after the others').
+    // The same for the ghost positions only (their density came after the others'): the slots
+    // kept for them (--overlap), else the columns holding any.
     void refresh_ghost_density(const Particles &p);
     View view() const;
     // A thread's seconds in a pair pass and the cost (candidates examined) of the cells it
@@ -434,20 +435,35 @@ void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys);
 // c - 1, whose neighbours (c - 2 to c) have theirs by then, from the packs its density pass
 // kept (the step moves no particle between the passes). The threads take the columns in
 // chunks (CellSorted::next_columns); a column whose neighbour another thread sweeps waits for
-// its flag, at the end. The columns next to ghosts (View::remote_columns) wait for
-// `ghost_densities`, called once every density pass is done, outside the threads: it must
-// bring the ghosts' densities and pressures (Domain::refresh_ghost_density, then the equation
-// of state); their force passes follow. Every sum is the passes' own: bitwise the same as
-// continuity, advance_density, the ghost refresh, equation_of_state and momentum apart
-// (tested), while the force pass packs almost nothing and reads what the step just touched.
+// its flag, at the end. Every sum is the passes' own: bitwise the same as continuity,
+// advance_density, the ghost refresh, equation_of_state and momentum apart (tested), while
+// the force pass packs almost nothing and reads what the step just touched.
+// sweep_columns sweeps the columns of one range and returns their density pass's counts; it
+// holds the force passes of the columns beside ghosts (View::remote_columns) or beside
+// columns out of the range, which force_held_columns runs once their neighbours are final.
+DensityCounts sweep_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, double back,
+                            double dt, ColumnSet columns);
+void force_held_columns(Particles &p, SortedNeighbours &nb, const Physics &phys);
+// The whole step's: every column swept, then `ghost_densities`, called outside the threads,
+// which must bring the ghosts' densities, pressures and sorted copies
+// (Domain::refresh_ghost_density, the equation of state, CellSorted::refresh_ghost_density),
+// then the held columns.
 void sweep_forces(Particles &p, SortedNeighbours &nb, const Physics &phys, double back, double dt,
                   const std::function<void()> &ghost_densities = {});
+// The density advance, equation of state and sorted-copy refresh of the owned particles of
+// some columns (what the sweep does per column; --overlap's edge columns).
+void advance_columns(Particles &p, SortedNeighbours &nb, const Physics &phys, double dt,
+                     ColumnSet columns);
 
-// A grid whose neighbourhood has such a sweep (Simulation::compute_forces uses it where it can).
+// A grid whose neighbourhood has such a sweep (Simulation's compute_forces and
+// compute_forces_overlapped use it where they can).
 template <class G>
 concept SweepingGrid = requires(Particles &p, typename G::Neighbours &nb, const Physics &phys,
-                                const std::function<void()> &f) {
+                                const std::function<void()> &f, ColumnSet c) {
     sweep_forces(p, nb, phys, 0.0, 0.0, f);
+    { sweep_columns(p, nb, phys, 0.0, 0.0, c) } -> std::same_as<DensityCounts>;
+    force_held_columns(p, nb, phys);
+    advance_columns(p, nb, phys, 0.0, c);
 };
 
 } // namespace sphperf::sph
