@@ -299,14 +299,15 @@ TEST(CellSorted, DriversMatchTheStoredListDrivers) {
     }
 }
 
-// sweep_forces is continuity, the density advance, the equation of state and momentum in one
-// sweep over the columns, each particle's sums the passes' own: bitwise the same rates,
-// densities, pressures, accelerations and counts as the four steps apart, at 1 to 3 threads
-// (each thread's cell block rounded to columns, its first column's forces last).
 // Simulation sweeps where the grid's neighbourhood offers it, and only there.
 static_assert(SweepingGrid<CellSorted>);
 static_assert(!SweepingGrid<CellList> && !SweepingGrid<CellTable>);
 
+// sweep_forces is continuity, the density advance, the equation of state and momentum in one
+// sweep over the columns, each particle's sums the passes' own: bitwise the same rates,
+// densities, pressures, accelerations and counts as the four steps apart, at 1 to 3 threads
+// (the columns handed out in chunks; a run's edge columns wait for their neighbours). The
+// multi-rank and --overlap sweeps are checked bitwise by test_sph_state.cpp.
 TEST(CellSorted, SweepIsTheSeparateSteps) {
     Physics phys;
     phys.h = cell / QuinticKernel::support_factor;

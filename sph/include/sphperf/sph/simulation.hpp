@@ -25,7 +25,6 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
-#include <type_traits>
 
 namespace sphperf::sph {
 
