@@ -167,6 +167,20 @@ void CellSorted::start_sweep() {
                         cols_);
     };
     constexpr auto per_block = static_cast<std::size_t>(column_chunks_per_block);
+    // Chunk c starts where a fraction 1 - (3/5)^c of the block's cost lies before it (in units
+    // of 2^-20, exact integers): large chunks first and small ones at the back, where another
+    // thread that ran out takes them, so the threads end close together. Equal chunks left the
+    // last thread running alone for half a chunk, 4-5 % of the sweep at 2 threads.
+    constexpr std::uint64_t one = 1 << 20;
+    constexpr std::array<std::uint64_t, per_block> before = [] {
+        std::array<std::uint64_t, per_block> f{};
+        std::uint64_t left = one;
+        for (auto &x : f) {
+            x = one - left;
+            left = left * 3 / 5;
+        }
+        return f;
+    }();
     column_bounds_.resize(static_cast<std::size_t>(threads_) * per_block + 1);
     for (int t = 0; t < threads_; ++t) {
         const int a = column_of_block(t), b = std::max(column_of_block(t + 1), a);
@@ -176,7 +190,7 @@ void CellSorted::start_sweep() {
         int col = a;
         for (std::size_t c = 0; c < per_block; ++c) {
             // The first column whose prefix reaches the chunk's share (cost_ is a prefix sum).
-            const std::uint64_t target = c0 + (c1 - c0) * c / per_block;
+            const std::uint64_t target = c0 + (c1 - c0) * before[c] / one;
             while (col < b && cost_at(col) < target)
                 ++col;
             column_bounds_[k0 + c] = static_cast<std::uint32_t>(c == 0 ? a : col);

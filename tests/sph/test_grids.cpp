@@ -729,6 +729,56 @@ TEST(CellSorted, ChunksHandOutEveryCellOnceOwnBlockFirst) {
     omp_set_num_threads(threads_before);
 }
 
+// The sweep's column chunks: a thread alone takes its own block's from the front, then the
+// other's from its back end, every column once; chunk k of a block costs 2/5 (3/5)^k of it
+// (the last one what is left, (3/5)^7), within one column's cost, so the small ones come last.
+TEST(CellSorted, SweepChunksShrinkTowardTheBlocksEnd) {
+    const CellWindow wide{cell, 0, 192, -1, 6};
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> x(0, 192 * cell), y(-cell, 6 * cell);
+    Particles p;
+    for (std::int64_t id = 0; id < 8000; ++id)
+        p.add_owned({x(rng), y(rng), 0, 0, 1000, 0, 1, id, Kind::fluid});
+    const int threads_before = omp_get_max_threads();
+    omp_set_num_threads(2);
+    CellSorted g;
+    g.update(p, wide);
+    const CellSorted::View v = g.view();
+    ASSERT_EQ(v.threads, 2);
+    const auto rows = static_cast<std::uint32_t>(v.rows);
+    const auto cost_at = [&](std::uint32_t col) { return v.cost[col * rows]; };
+    std::uint64_t largest_column = 0;
+    for (std::uint32_t c = 0; c < static_cast<std::uint32_t>(v.cols); ++c)
+        largest_column = std::max(largest_column, cost_at(c + 1) - cost_at(c));
+    g.start_sweep();
+    std::vector<int> taken(static_cast<std::size_t>(v.cols), 0);
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> order;
+    std::uint32_t c0 = 0, c1 = 0;
+    while (g.next_columns(0, c0, c1)) {
+        order.emplace_back(c0, c1);
+        for (std::uint32_t c = c0; c < c1; ++c)
+            ++taken[c];
+    }
+    EXPECT_TRUE(std::all_of(taken.begin(), taken.end(), [](int n) { return n == 1; }));
+    constexpr int per_block = CellSorted::column_chunks_per_block;
+    ASSERT_EQ(order.size(), 2u * per_block);
+    EXPECT_EQ(order.front().first, 0u);
+    EXPECT_EQ(order[per_block].second, static_cast<std::uint32_t>(v.cols)); // thread 1's last
+    const double block =
+        static_cast<double>(cost_at(order[per_block - 1].second) - cost_at(order.front().first));
+    double share = 0.4;
+    for (int k = 0; k < per_block; ++k) {
+        const auto [a, b] = order[static_cast<std::size_t>(k)];
+        const double expected = k + 1 < per_block ? share : share / 0.4;
+        EXPECT_NEAR(static_cast<double>(cost_at(b) - cost_at(a)), expected * block,
+                    static_cast<double>(largest_column))
+            << "chunk " << k;
+        share *= 0.6;
+    }
+    EXPECT_LT(static_cast<double>(largest_column), 0.03 * block); // a column is a small part
+    omp_set_num_threads(threads_before);
+}
+
 TEST(Particles, PermuteRefusesWhatIsNotAFluidFirstPermutation) {
     Particles p = random_configuration(12, 10, 0); // ids 0 and 5 are walls, at positions 8, 9
     std::vector<std::uint32_t> order{1, 0, 2, 3, 4, 5, 6, 7, 8, 9};

@@ -182,8 +182,9 @@ public:
     void start_pass();
     bool next_cells(int thread, std::uint32_t &first, std::uint32_t &last);
     // sweep_forces' columns, handed out the same way: each block rounded to whole columns, cut
-    // into `column_chunks_per_block` chunks of equal cost (fewer columns than cells: a chunk
-    // taken by another thread costs the sweep a fresh pack of its two edge columns).
+    // into `column_chunks_per_block` chunks, each 3/5 the cost of the one before (fewer columns
+    // than cells: a chunk taken by another thread costs the sweep a fresh pack of its two edge
+    // columns; the small ones at the back keep the threads' ends close).
     // start_sweep() before the sweep's parallel region; next_columns gives [first, last).
     static constexpr int column_chunks_per_block = 8;
     void start_sweep();
