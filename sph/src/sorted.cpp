@@ -304,8 +304,8 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
         // thread the whole water of a dam break: 0.23 against 0.09 ms at scale 4).
         const auto [c0, c1] = thread_cells(blocks_.data(), threads_, start_.size() - 1);
         const auto column_from = [&](std::size_t cell) {
-            return std::clamp(static_cast<int>((cell + rows - 1) / rows), first_column,
-                              last_column);
+            const int col = rows > 0 ? static_cast<int>((cell + rows - 1) / rows) : 0;
+            return std::clamp(col, first_column, last_column);
         };
         for (int col = column_from(c0); col < column_from(c1); ++col) {
             const auto c = static_cast<std::size_t>(col);
