@@ -51,6 +51,20 @@ PairSet from_list(const Particles &p, const NeighbourList &nl) {
     return s;
 }
 
+// The OpenMP team size within a test: the one before comes back however the test ends (an
+// ASSERT returns early).
+class TeamSize {
+public:
+    TeamSize() = default;
+    TeamSize(const TeamSize &) = delete;
+    TeamSize &operator=(const TeamSize &) = delete;
+    ~TeamSize() { omp_set_num_threads(before_); }
+    void set(int threads) const { omp_set_num_threads(threads); }
+
+private:
+    int before_ = omp_get_max_threads();
+};
+
 // A slab owning columns 3..8 of a tank, ghosts in columns 2 and 9, rows -1..5.
 const CellWindow window{cell, 2, 10, -1, 6};
 
@@ -207,9 +221,9 @@ template <class G> void check_particle_descents() {
         const auto a = rng() % p.owned(), b = rng() % p.owned();
         std::swap(p.id[a], p.id[b]);
     }
-    const int threads_before = omp_get_max_threads();
+    const TeamSize team;
     for (int threads : {1, 2}) {
-        omp_set_num_threads(threads);
+        team.set(threads);
         G grid;
         NeighbourList nl;
         grid.update(p, window);
@@ -223,7 +237,6 @@ template <class G> void check_particle_descents() {
         EXPECT_EQ(sum, nl.counts.descents) << threads << " threads";
         EXPECT_GT(nl.counts.descents, 0u);
     }
-    omp_set_num_threads(threads_before);
 }
 TEST(StoredLists, CountDescentsPerParticle) {
     check_particle_descents<CellList>();
@@ -312,14 +325,14 @@ TEST(CellSorted, SweepIsTheSeparateSteps) {
     Physics phys;
     phys.h = cell / QuinticKernel::support_factor;
     constexpr double dt = 1e-4;
-    const int threads_before = omp_get_max_threads();
+    const TeamSize team;
     // In chunk order, and with every chunk a run of its own (its edge columns' forces then
     // wait for the neighbours and pack afresh).
     for (const int threads : {1, 2, 3})
         for (const bool from_back : {false, true}) {
             SCOPED_TRACE(std::to_string(threads) + " threads" +
                          (from_back ? ", from the back" : ""));
-            omp_set_num_threads(threads);
+            team.set(threads);
             Particles p = random_configuration(11, 900, 0);
             stir(p, 4);
             equation_of_state(p, phys);
@@ -350,7 +363,6 @@ TEST(CellSorted, SweepIsTheSeparateSteps) {
             }
             EXPECT_GT(moving, p.owned() / 2); // the forces were computed, not left at 0
         }
-    omp_set_num_threads(threads_before);
 }
 
 // The packing of in-range candidates (vectorised where the build has AVX-512) against a plain
@@ -607,13 +619,13 @@ TEST(CellSorted, ThreadBlocksAreBalancedAndTheSortIsTheSerialOne) {
     Particles p = random_configuration(5, 900, 120);
     for (std::size_t i = 0; i < p.owned(); i += 2)
         p.x[i] = 3 * cell + 0.3 * (p.x[i] - 3 * cell); // most of the water in the west columns
-    const int threads_before = omp_get_max_threads();
-    omp_set_num_threads(1);
+    const TeamSize team;
+    team.set(1);
     CellSorted serial;
     serial.update(p, window);
     const CellSorted::View s = serial.view();
     const std::vector<std::uint32_t> orig(s.orig, s.orig + p.size());
-    omp_set_num_threads(3);
+    team.set(3);
     CellSorted g;
     for (int pass = 0; pass < 2; ++pass) {
         g.update(p, window);
@@ -633,7 +645,6 @@ TEST(CellSorted, ThreadBlocksAreBalancedAndTheSortIsTheSerialOne) {
             EXPECT_NEAR(block, total / 3, largest) << "thread " << t;
         }
     }
-    omp_set_num_threads(threads_before);
 }
 
 // The blocks follow the threads' measured speed: a thread that took four times as long as the
@@ -641,8 +652,8 @@ TEST(CellSorted, ThreadBlocksAreBalancedAndTheSortIsTheSerialOne) {
 // a step without timings keeps the shares; another team size starts again from equal ones.
 TEST(CellSorted, ThreadBlocksFollowTheThreadsMeasuredSpeed) {
     const Particles p = random_configuration(6, 900, 120);
-    const int threads_before = omp_get_max_threads();
-    omp_set_num_threads(3);
+    const TeamSize team;
+    team.set(3);
     CellSorted g;
     const auto block_shares = [&] {
         const CellSorted::View v = g.view();
@@ -671,20 +682,19 @@ TEST(CellSorted, ThreadBlocksFollowTheThreadsMeasuredSpeed) {
             EXPECT_NEAR(shares[t], expected[t], 0.03) << "thread " << t << ", step " << step;
         g.update(p, window);
     }
-    omp_set_num_threads(2);
+    team.set(2);
     g.update(p, window);
     shares = block_shares();
     ASSERT_EQ(shares.size(), 2u);
     EXPECT_NEAR(shares[0], 0.5, 0.03);
-    omp_set_num_threads(threads_before);
 }
 
 // The pair passes' chunks: a thread takes its own block's front to back, then the other
 // blocks' from their back ends; every cell is handed out once, whoever takes it.
 TEST(CellSorted, ChunksHandOutEveryCellOnceOwnBlockFirst) {
     const Particles p = random_configuration(7, 900, 120);
-    const int threads_before = omp_get_max_threads();
-    omp_set_num_threads(3);
+    const TeamSize team;
+    team.set(3);
     CellSorted g;
     g.update(p, window);
     const CellSorted::View v = g.view();
@@ -726,7 +736,6 @@ TEST(CellSorted, ChunksHandOutEveryCellOnceOwnBlockFirst) {
     }
     for (std::uint32_t c = 0; c < cells; ++c)
         EXPECT_EQ(seen[c].load(), 1) << "cell " << c;
-    omp_set_num_threads(threads_before);
 }
 
 // The sweep's column chunks: a thread alone takes its own block's from the front, then the
@@ -739,8 +748,8 @@ TEST(CellSorted, SweepChunksShrinkTowardTheBlocksEnd) {
     Particles p;
     for (std::int64_t id = 0; id < 8000; ++id)
         p.add_owned({x(rng), y(rng), 0, 0, 1000, 0, 1, id, Kind::fluid});
-    const int threads_before = omp_get_max_threads();
-    omp_set_num_threads(2);
+    const TeamSize team;
+    team.set(2);
     CellSorted g;
     g.update(p, wide);
     const CellSorted::View v = g.view();
@@ -776,7 +785,6 @@ TEST(CellSorted, SweepChunksShrinkTowardTheBlocksEnd) {
         share *= 0.6;
     }
     EXPECT_LT(static_cast<double>(largest_column), 0.03 * block); // a column is a small part
-    omp_set_num_threads(threads_before);
 }
 
 TEST(Particles, PermuteRefusesWhatIsNotAFluidFirstPermutation) {
