@@ -269,6 +269,9 @@ private:
     std::vector<double> seconds_per_cost_; // smoothed, per thread
     // This thread's sorted positions (inside a parallel region): those of its block's cells.
     std::pair<std::size_t, std::size_t> thread_positions() const;
+    // The column whose first cell is nearest to `cell`: where a block of cells is cut into
+    // whole columns (start_sweep's chunks, copy_fields' column marks).
+    int column_nearest(std::size_t cell) const;
     CellWindow window_;
     std::size_t west_ = 0, east_ = 0, local_ = 0; // ghost slots kept, particles sorted
     std::vector<double> x_, y_, vx_, vy_, rho_, p_over_rho2_, mass_, fluid_, remote_;
