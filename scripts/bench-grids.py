@@ -77,8 +77,32 @@ def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False, inter
             "intervals": [{"step": iv["step"], "time_s": iv["time_s"],
                            "timers_s": sum(iv["ranks"][0]["timers"].values())}
                           for iv in j["intervals"]] if ranks == 1 else [],
+            # Runs of two or more threads: the core latency gauge (sph/README.md), the mean round
+            # trip of a line between threads 0 and 1 and the share of its samples in intervals
+            # whose mean is in the far mode (None: no reading, one thread or taking turns).
+            **core_round_trip(j),
             # The binary's flags and the machine it ran on, for the benchmark's own report.
             "build": j.get("build"), "topology": j.get("topology")}
+
+
+# This VM's two vCPUs pass a cache line back and forth in about 60 ns in most spells and about
+# 350 ns in others (sph/NOTES.md, sessions 21 and 70); an interval whose mean round trip is
+# above this is in the far mode.
+FAR_ROUND_TRIP_S = 150e-9
+
+
+def core_round_trip(report):
+    total = samples = far = 0.0
+    for iv in report["intervals"]:
+        for r in iv["ranks"]:
+            n = r.get("core_round_trip_samples", 0)
+            if n > 0:
+                total += r["core_round_trip_s"]
+                samples += n
+                far += n if r["core_round_trip_s"] / n > FAR_ROUND_TRIP_S else 0
+    if samples == 0:
+        return {"core_round_trip_s": None, "core_far_fraction": None}
+    return {"core_round_trip_s": total / samples, "core_far_fraction": far / samples}
 
 
 def run_pysph(scale, threads, steps):
@@ -241,6 +265,11 @@ def main():
             row["grids"][g] = {key: spread([r[key] for r in runs[g]])
                                for key in ("step_s", "ns_per_pair", "particle_steps_per_s",
                                            "peak_rss_bytes")}
+            # Per run, in round order: the time per step and, at 2 threads or more, the core
+            # latency gauge's mean round trip and far share (the mode each run ran in).
+            row["grids"][g]["runs"] = [
+                {"step_s": r["step_s"], "core_round_trip_s": r["core_round_trip_s"],
+                 "core_far_fraction": r["core_far_fraction"]} for r in runs[g]]
             if g != "table" and "table" in grids:
                 row["grids"][g]["speedup_over_table"] = spread(
                     [t["step_s"] / r["step_s"] for r, t in zip(runs[g], runs["table"])])
@@ -263,6 +292,31 @@ def main():
             entry["two_thread_speedup"] = spread(
                 [a["grids"][g]["step_s"]["median"] / b["grids"][g]["step_s"]["median"]
                  for a, b in two])
+            # The same from the 2-thread runs of one core-latency mode alone (the gauge's
+            # intervals all near, or all far), where a configuration has any.
+            for mode, keep in (("near", lambda f: f == 0), ("far", lambda f: f == 1)):
+                ratios = []
+                for a, b in two:
+                    key = (b["setup"], b["scale"], b["threads"], b["ranks"])
+                    steps_in_mode = [r["step_s"] for r in results[key][g]
+                                     if r["core_far_fraction"] is not None
+                                     and keep(r["core_far_fraction"])]
+                    if steps_in_mode:
+                        ratios.append(a["grids"][g]["step_s"]["median"] /
+                                      statistics.median(steps_in_mode))
+                if ratios:
+                    entry[f"two_thread_speedup_{mode}_core_latency"] = spread(ratios)
+                    entry[f"two_thread_speedup_{mode}_core_latency"]["configurations"] = \
+                        len(ratios)
+            gauged = [r for b in (b for _, b in two)
+                      for r in results[(b["setup"], b["scale"], b["threads"], b["ranks"])][g]
+                      if r["core_round_trip_s"] is not None]
+            if gauged:
+                entry["two_thread_core_round_trip_s"] = spread(
+                    [r["core_round_trip_s"] for r in gauged])
+                entry["two_thread_runs_far_core_latency"] = sum(
+                    r["core_far_fraction"] == 1 for r in gauged)
+                entry["two_thread_runs_gauged"] = len(gauged)
         one = [r for r in rows if r["threads"] == 1 and r["ranks"] == 1]
         if one:
             entry["ns_per_pair_1_thread"] = spread(
@@ -288,6 +342,18 @@ def main():
         if "two_thread_speedup" in e:
             parts.append(f"2-thread speed-up {e['two_thread_speedup']['median']:.2f} "
                          f"({e['two_thread_speedup']['min']:.2f}..{e['two_thread_speedup']['max']:.2f})")
+            for mode in ("near", "far"):
+                m = e.get(f"two_thread_speedup_{mode}_core_latency")
+                if m:
+                    parts.append(f"{mode} core latency {m['median']:.2f} "
+                                 f"({m['min']:.2f}..{m['max']:.2f}, {m['configurations']} "
+                                 f"configurations)")
+            if "two_thread_core_round_trip_s" in e:
+                rt = e["two_thread_core_round_trip_s"]
+                parts.append(f"core round trip {rt['median'] * 1e9:.0f} ns "
+                             f"({rt['min'] * 1e9:.0f}..{rt['max'] * 1e9:.0f}; "
+                             f"{e['two_thread_runs_far_core_latency']} of "
+                             f"{e['two_thread_runs_gauged']} 2-thread runs far)")
         if "bytes_per_particle_above_fixed" in e:
             parts.append(f"bytes/particle above fixed {e['bytes_per_particle_above_fixed']['median']:.0f}")
         print(f"{g:6s}: " + ", ".join(parts))

@@ -5,7 +5,9 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace sphperf::sph {
@@ -93,6 +95,68 @@ double SpeedGauge::sample() {
     }
     checksum_ = first_checksum;
     return seconds / team;
+}
+
+CoreLatencyGauge::CoreLatencyGauge(int batches)
+    : batches_(std::max(batches, 1)), times_(static_cast<std::size_t>(batches_)) {}
+
+double CoreLatencyGauge::sample() {
+    constexpr double none = std::numeric_limits<double>::quiet_NaN();
+    if (omp_get_max_threads() < 2)
+        return none;
+    line_.value.store(0);
+    line_.abandoned.store(false);
+    bool complete = false;
+    const int trips = 1 + batches_ * round_trips_per_batch;
+#pragma omp parallel
+    {
+        const int me = omp_get_thread_num();
+        // Waits until the line holds `want`; false on the timeout or once the other gave up.
+        const auto wait_for = [this](std::uint32_t want) {
+            const double since = wall_seconds();
+            for (std::uint32_t spins = 0;; ++spins) {
+                if (line_.value.load(std::memory_order_acquire) == want)
+                    return true;
+                if ((spins & 63) == 63 &&
+                    (line_.abandoned.load() || wall_seconds() - since > timeout_s)) {
+                    line_.abandoned.store(true);
+                    return false;
+                }
+            }
+        };
+        // Round trip 0 only meets the two threads (they enter the region at different times);
+        // thread 0 times the others in batches, a clock read costing a good part of a round
+        // trip here.
+        if (me == 0) {
+            bool ok = true;
+            double t0 = 0;
+            for (int k = 0; ok && k < trips; ++k) {
+                if (k % round_trips_per_batch == 1) {
+                    const double now = wall_seconds();
+                    if (k > 1)
+                        times_[static_cast<std::size_t>(k / round_trips_per_batch - 1)] =
+                            (now - t0) / round_trips_per_batch;
+                    t0 = now;
+                }
+                line_.value.store(static_cast<std::uint32_t>(2 * k + 1), std::memory_order_release);
+                ok = wait_for(static_cast<std::uint32_t>(2 * k + 2));
+            }
+            if (ok)
+                times_.back() = (wall_seconds() - t0) / round_trips_per_batch;
+            complete = ok;
+        } else if (me == 1) {
+            for (int k = 0; k < trips; ++k) {
+                if (!wait_for(static_cast<std::uint32_t>(2 * k + 1)))
+                    break;
+                line_.value.store(static_cast<std::uint32_t>(2 * k + 2), std::memory_order_release);
+            }
+        }
+    }
+    if (!complete)
+        return none;
+    const auto mid = times_.begin() + static_cast<std::ptrdiff_t>(times_.size() / 2);
+    std::nth_element(times_.begin(), mid, times_.end());
+    return *mid;
 }
 
 } // namespace sphperf::sph

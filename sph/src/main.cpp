@@ -129,7 +129,8 @@ Config parse(int argc, char **argv) {
                    "Steps between samples of the speed gauge, a fixed piece of the density "
                    "pass's arithmetic on every thread that measures how fast the host runs "
                    "during the run (gauge_cpu_s per interval and rank; about 60 us a sample "
-                   "here; 0: none)")
+                   "here; 0: none), and with two or more threads the round trip of a cache "
+                   "line between threads 0 and 1 (core_round_trip_s; 40 round trips)")
         ->capture_default_str()
         ->check(cli::Range(0, 1 << 30));
     app.add_flag("--quiet", cfg.quiet, "No progress line");
@@ -433,7 +434,7 @@ void simulate(const Config &cfg, const Geometry &geo, int rank) {
 }
 
 int run(int argc, char **argv, int rank, int ranks) {
-    const Config cfg = parse(argc, argv);
+    Config cfg = parse(argc, argv);
     const Geometry geo = make_geometry(cfg);
     validate(cfg, geo, ranks);
     const Topology topo;
@@ -443,14 +444,15 @@ int run(int argc, char **argv, int rank, int ranks) {
         omp_set_num_threads(default_threads(topo));
     check_outputs(cfg, geo, rank, ranks); // after the thread count: --exchange checks it
 
-    if (rank == 0) {
-        // Threads beyond the cores this rank may run on only take turns: say so.
+    {
+        // Threads beyond the cores this rank may run on only take turns: say so (rank 0).
         // With OMP_PROC_BIND the runtime has already bound this thread to one place, before the
         // team exists: the team's cores are then the places.
         const int places = omp_get_proc_bind() != omp_proc_bind_false ? omp_get_num_places() : 0;
         const int bound = places > 0 ? places : topo.this_process_binding().weight();
         const int threads = omp_get_max_threads();
-        if (bound > 0 && threads > bound)
+        const bool shared_binding = bound > 0 && threads > bound;
+        if (rank == 0 && shared_binding)
             std::fprintf(stderr,
                          "sph: warning: %d threads share the %d core(s) this rank is bound to; "
                          "launch with scripts/mpirun.sh -n RANKS -t THREADS\n",
@@ -459,11 +461,13 @@ int run(int argc, char **argv, int rank, int ranks) {
         const int local = ranks_on_node();
         const int allocated = env_count("SLURM_CPUS_ON_NODE");
         const int cores = allocated > 0 ? allocated : topo.pus();
-        if (local * threads > cores)
+        if (rank == 0 && local * threads > cores)
             std::fprintf(stderr,
                          "sph: warning: %d ranks x %d threads on this node exceed its %d "
                          "core(s)%s; they take turns\n",
                          local, threads, cores, allocated > 0 ? " in the Slurm allocation" : "");
+        // Threads taking turns would pass the gauge's line a time slice at a time.
+        cfg.core_latency_gauge = !shared_binding && local * threads <= cores;
     }
     // From here on an error may strike one rank only, while the others wait in an exchange:
     // it ends the whole job (MPI_Abort), naming the rank, instead of leaving them waiting.

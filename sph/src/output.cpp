@@ -242,6 +242,8 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"probe_shift_s", r.probe_shift_s},
                               {"gauge_cpu_s", r.gauge_cpu_s},
                               {"gauge_samples", r.gauge_samples},
+                              {"core_round_trip_s", r.core_round_trip_s},
+                              {"core_round_trip_samples", r.core_round_trip_samples},
                               {"descents", r.descents},
                               {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)

@@ -5,6 +5,7 @@
 #include "sphperf/sph/sorted.hpp"
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <numbers>
@@ -156,4 +157,24 @@ TEST(SpeedGauge, KernelIsTheContinuityTermOnFixedData) {
     for (int n = 0; n < 3; ++n)
         four += one;
     EXPECT_DOUBLE_EQ(gauge.checksum(), four);
+}
+
+// The core latency gauge reads nothing for one thread and, for a team of two or three, either a
+// round trip within its timeout or nothing (the partner descheduled: under ctest -j the tests
+// share the cores). What must hold whatever the timing: every sample ends, and a team of one
+// never reads.
+TEST(CoreLatencyGauge, ReadsARoundTripOrNothingAndAlwaysEnds) {
+    const int before = omp_get_max_threads();
+    CoreLatencyGauge gauge(3);
+    omp_set_num_threads(1);
+    EXPECT_TRUE(std::isnan(gauge.sample()));
+    for (int team : {2, 3}) {
+        omp_set_num_threads(team);
+        for (int k = 0; k < 20; ++k) {
+            const double rt = gauge.sample();
+            EXPECT_TRUE(std::isnan(rt) || (rt > 0 && rt <= CoreLatencyGauge::timeout_s))
+                << "team " << team << ", sample " << k << ": " << rt << " s";
+        }
+    }
+    omp_set_num_threads(before);
 }

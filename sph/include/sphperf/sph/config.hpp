@@ -129,6 +129,9 @@ struct Config {
     bool overlap = false;       // non-blocking ghost exchanges behind the interior columns (sorted)
     int reorder_every = 0;      // steps between permuting the particles into cell order; 0: never
     int speed_gauge_every = 10; // steps between samples of the speed gauge (gauge.hpp); 0: none
+    // With it, the core latency gauge's (gauge.hpp) where the rank has two or more threads and
+    // they do not take turns on cores (set by main from the placement, not an option).
+    bool core_latency_gauge = true;
     Physics physics;
 
     std::int64_t total_steps() const;

@@ -8,6 +8,7 @@
 // Its reading also follows the vector width of the code before it (an Intel core's AVX-512
 // frequency levels): on the 512-bit build it reads 3-9 % faster in Cell+Sorted runs than in
 // Cell+Table runs (model/NOTES.md, session 58).
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -58,6 +59,37 @@ private:
     int repeats_;
     GaugeData data_;
     double checksum_ = 0;
+};
+
+// The round trip of a cache line between two threads of the team, measured inside a run. This
+// VM's two vCPUs switch, in spells of seconds to minutes, between about 60 and 350 ns a round
+// trip (sph/NOTES.md, sessions 21 and 70), and a step at 2 threads pays it at every parallel
+// region, barrier and line the other thread wrote: in the far spells the grid update and the
+// kicks of a Cell+Sorted dam break cost about twice as much. Sampled beside the speed gauge:
+// threads 0 and 1 pass one line back and forth, and the report says which spell each interval
+// ran in.
+class CoreLatencyGauge {
+public:
+    // Round trips timed together (a clock read here costs a good part of one) and batches per
+    // sample: 5 x 8, about 3 us in the near spells, 15 us in the far ones.
+    static constexpr int round_trips_per_batch = 8;
+    static constexpr int default_batches = 5;
+    // A wait longer than this ends the sample without a reading: the partner thread is not
+    // running (more threads than cores), and spinning on would cost a time slice each.
+    static constexpr double timeout_s = 50e-6;
+    explicit CoreLatencyGauge(int batches = default_batches);
+    // Seconds: the median over the batches of the mean round trip between threads 0 and 1 of
+    // an OpenMP team, or a NaN for a team of one thread or a sample cut short by the timeout.
+    double sample();
+
+private:
+    int batches_;
+    struct alignas(64) Line {
+        std::atomic<std::uint32_t> value{0};
+        std::atomic<bool> abandoned{false};
+    };
+    Line line_;
+    std::vector<double> times_; // the last sample's batch means
 };
 
 } // namespace sphperf::sph

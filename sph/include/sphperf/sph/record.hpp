@@ -41,6 +41,11 @@ struct RankInterval {
     double probe_shift_s = 0;    // the latency probe at the interval's end (Domain), 0: none
     double gauge_cpu_s = 0;      // the speed gauge's samples (gauge.hpp): CPU seconds, total
     double gauge_samples = 0;    // ... and how many
+    // Ranks of two or more threads: the core latency gauge's readings (gauge.hpp), the median
+    // round trip of a line between threads 0 and 1 per sample, total, and how many samples
+    // gave one (none above the cores, where the partner thread is not running).
+    double core_round_trip_s = 0;
+    double core_round_trip_samples = 0;
     std::array<double, static_cast<std::size_t>(Phase::count)> timers{};
     ShiftTimes shift_comm_s{};    // comm_s split by exchange (migration, ghosts, densities)
     ShiftTimes shift_predict_s{}; // comm_predict_s split the same way
@@ -53,7 +58,7 @@ struct RankInterval {
     }
 
     static constexpr std::size_t fields =
-        25 + static_cast<std::size_t>(Phase::count) + 4 * static_cast<std::size_t>(Shift::count);
+        27 + static_cast<std::size_t>(Phase::count) + 4 * static_cast<std::size_t>(Shift::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

@@ -110,6 +110,7 @@ private:
     // Stored-list grids: interactions and descents per global column over the interval.
     std::vector<double> acc_column_interactions_, acc_column_descents_;
     SpeedGauge gauge_;
+    CoreLatencyGauge latency_;
     std::size_t last_mirrors_ = 0, last_ghosts_ = 0, last_exported_ = 0, last_migrated_ = 0;
     std::int64_t first_mirror_id_ = 0;
     std::vector<std::uint32_t> mirror_sources_;
@@ -718,6 +719,13 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
             ScopedPhase t(step_timers_, Phase::gauge);
             acc_.gauge_cpu_s += gauge_.sample();
             acc_.gauge_samples += 1;
+            if (const double rt = cfg_.core_latency_gauge
+                                      ? latency_.sample()
+                                      : std::numeric_limits<double>::quiet_NaN();
+                std::isfinite(rt)) {
+                acc_.core_round_trip_s += rt;
+                acc_.core_round_trip_samples += 1;
+            }
         }
         const double t0 = wall_seconds();
         step(s);
