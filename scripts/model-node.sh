@@ -456,6 +456,11 @@ CAL_EXTRA="--speed-gauge run" beside model_and_validate "$out/run-speed-gauge" "
 # The gauge of an interval as the window's compute-weighted mean (sessions 51-53) instead of its
 # median (one gauge sample hit by a host interrupt read 1.5-4 times the others).
 CAL_EXTRA="--speed-gauge interval-mean" beside model_and_validate "$out/mean-gauge-window" "$rule" froude
+# Each interval's gauge factor raised to the elasticity of the calibration runs' compute to the
+# gauge (calibrate --speed-gauge-elasticity fitted) instead of applied whole (model/NOTES.md,
+# session 70: the compute follows the gauge by about half to nine tenths in logs, yet the
+# replayed wall median was worse in six of seven jobs).
+CAL_EXTRA="--speed-gauge-elasticity fitted" beside model_and_validate "$out/gauge-elasticity-fitted" "$rule" froude
 # The jitter's deviation growing as the step's square root (sessions 15-60) instead of the form
 # the calibration runs' waits choose (session 61).
 CAL_EXTRA="--jitter-form sqrt" beside model_and_validate "$out/sqrt-jitter" "$rule" froude

@@ -476,10 +476,25 @@ def markdown(model, validation, args, out):
                           else "mean: calibrate --speed-gauge interval-mean)") if per_interval else
                        "divided by their run's factor (calibrate --speed-gauge run)")
                     + ", so the model is at one host speed.")
+            elasticity = gauge.get("elasticity")
+            beta = elasticity.get("used", 1.0) if elasticity else 1.0
+            if elasticity and "value" in elasticity:
+                line += (f" The runs' compute follows the gauge with an elasticity of "
+                         f"{elasticity['value']:.2f} (standard error {elasticity['se']:.2f}, "
+                         f"{elasticity['points']} busy rank-intervals: ln compute per interaction on "
+                         f"ln gauge, each run and rank's own level and trend through the run apart), "
+                         + (f"so each factor is applied raised to {beta:.2f} (calibrate "
+                            f"--speed-gauge-elasticity fitted)." if beta != 1 else
+                            f"and the factor is applied whole ({elasticity.get('reason', '')}; "
+                            f"raised to the elasticity in gauge-elasticity-fitted/, which made "
+                            f"the wall median worse in six of seven replayed jobs, "
+                            f"model/NOTES.md session 70)."))
             if corrected:
                 f = s["speed_factor"]
                 line += (f" The validation runs ran at {f['min']:.2f}-{f['max']:.2f} times it; at each "
-                         f"run's own host speed (the prediction times its factor) the wall |error| is "
+                         f"run's own host speed (the prediction times its factor"
+                         + (f" raised to {beta:.2f}" if beta != 1 else "")
+                         + f") the wall |error| is "
                          f"median {100 * corrected['median']:.1f} %, max {100 * corrected['max']:.1f} % over "
                          f"{corrected['count']} configurations. That corrects for the host, not the model, and "
                          f"uses what the run measured: the figures above are the prediction's.")
@@ -593,6 +608,15 @@ def markdown(model, validation, args, out):
              "the gauge's agreement with repeated runs (model/NOTES.md), before any validation ran "
              "with it: not tuned. Without it (the runs as measured, sessions 1-49's model) on the "
              "same runs: {o} (no-speed-gauge/validation.json)."),
+            ((model.get("speed_gauge") or {}).get("applied", False)
+             and ((model.get("speed_gauge") or {}).get("elasticity") or {}).get("used", 1.0) == 1.0,
+             "gauge-elasticity-fitted",
+             "The gauge's factor applied whole (calibrate --speed-gauge-elasticity one, sessions "
+             "50-70), kept in session 70 after the elasticity the calibration runs show (their "
+             "compute per interaction on their interval's gauge, in logs, about 0.45-0.88) was "
+             "replayed on seven main jobs and made the wall median worse in six: not tuned (the "
+             "rule did not change). With each factor raised to this job's elasticity on the same "
+             "runs: {o} (gauge-elasticity-fitted/validation.json)."),
             ("form_chosen_by" in (model.get("jitter") or {}),
              "sqrt-jitter",
              "The jitter's form chosen by the calibration runs' own waits (calibrate --jitter-form "

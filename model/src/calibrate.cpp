@@ -1156,7 +1156,82 @@ json segment_shares(const std::vector<const SphRun *> &runs) {
 }
 } // namespace
 
-json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference rule) {
+json gauge_elasticity(const std::vector<SphRun> &runs,
+                      const std::vector<std::vector<double>> &interval_gauges, int cores) {
+    constexpr std::size_t min_points_per_group = 4;
+    struct Point {
+        double x, y, t;
+    };
+    std::vector<std::vector<Point>> groups; // per run and rank
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        const auto &r = runs[i];
+        if (cores > 0 && r.config.ranks * r.config.threads > cores)
+            continue;
+        const std::size_t n = r.intervals.size();
+        if (interval_gauges[i].size() != n || n == 0)
+            continue;
+        const std::size_t ranks = r.intervals.front().ranks.size();
+        for (std::size_t k = 0; k < ranks; ++k) {
+            std::vector<Point> pts;
+            for (std::size_t v = 0; v < n; ++v) {
+                if (k >= r.intervals[v].ranks.size())
+                    continue;
+                const auto &rk = r.intervals[v].ranks[k];
+                const double g = interval_gauges[i][v];
+                const double c = rk.compute_s();
+                if (rk.field <= 0 || rk.interactions <= 0 || rk.steps <= 0 || !(c > 0) || !(g > 0))
+                    continue;
+                pts.push_back({std::log(g), std::log(c / rk.steps / rk.interactions),
+                               (static_cast<double>(v) + 0.5) / static_cast<double>(n)});
+            }
+            if (pts.size() >= min_points_per_group)
+                groups.push_back(std::move(pts));
+        }
+    }
+    std::vector<std::string> terms{"gauge"};
+    for (std::size_t g = 0; g < groups.size(); ++g)
+        for (const char *part : {"", "_t", "_t2"})
+            terms.push_back("group" + std::to_string(g) + part);
+    std::vector<std::vector<double>> X;
+    std::vector<double> y;
+    for (std::size_t g = 0; g < groups.size(); ++g)
+        for (const auto &p : groups[g]) {
+            std::vector<double> row(terms.size(), 0.0);
+            row[0] = p.x;
+            row[1 + 3 * g] = 1;
+            row[2 + 3 * g] = p.t;
+            row[3 + 3 * g] = p.t * p.t;
+            X.push_back(std::move(row));
+            y.push_back(p.y);
+        }
+    if (groups.empty() || y.size() <= terms.size() + 2)
+        return nullptr;
+    LinearFit f;
+    try {
+        f = fit_linear(X, y, terms);
+    } catch (const std::invalid_argument &) {
+        return nullptr; // no spread of the gauge left once each group's trend is out
+    }
+    return {{"value", f.coef[0]},
+            {"se", f.se[0]},
+            {"points", y.size()},
+            {"groups", groups.size()},
+            {"method", "least squares of ln(compute per step per interaction) of the busy "
+                       "rank-intervals of the runs within the cores on ln(the interval's gauge), "
+                       "with an intercept, slope and curvature in the run's time per run and "
+                       "rank (each rank's level and the flow's trend); ranks with 4 or more "
+                       "intervals"}};
+}
+
+double gauge_elasticity_for(const json &speed_gauge) {
+    if (!speed_gauge.is_object() || !speed_gauge.value("applied", false) ||
+        !speed_gauge.contains("elasticity"))
+        return 1.0;
+    return speed_gauge.at("elasticity").value("used", 1.0);
+}
+
+json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference rule,
+                     GaugeElasticity elasticity_rule, int cores) {
     json out{{"applied", false}};
     if (mode == SpeedGauge::off) {
         out["reason"] = "calibrate --speed-gauge off";
@@ -1191,6 +1266,31 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
                               {"reference_cpu_s_per_sample", group_reference[key]},
                               {"runs", g.size()}});
     }
+    // The gauge around each interval (the run mode's elasticity is estimated on them too).
+    const auto pooling =
+        mode == SpeedGauge::interval_mean ? SphRun::Pooling::mean : SphRun::Pooling::median;
+    std::vector<std::vector<double>> interval_gauges;
+    for (const auto &r : runs)
+        interval_gauges.push_back(r.interval_gauges_s(speed_gauge_half_window, pooling));
+    // Estimated whatever the rule (a diagnostic of how far the runs follow the gauge), used
+    // with fitted only.
+    double beta = 1;
+    json elasticity = gauge_elasticity(runs, interval_gauges, cores);
+    if (elasticity.is_null()) {
+        elasticity = {{"used", 1.0},
+                      {"reason", "too few busy rank-intervals within the cores to estimate it: "
+                                 "the factor applied whole"}};
+    } else if (elasticity_rule == GaugeElasticity::one) {
+        elasticity["used"] = 1.0;
+        elasticity["reason"] = "calibrate --speed-gauge-elasticity one: the factor applied whole";
+    } else if (elasticity.at("se").get<double>() > max_elasticity_se) {
+        elasticity["used"] = 1.0;
+        elasticity["reason"] = "standard error above " + std::to_string(max_elasticity_se) +
+                               ": the factor applied whole";
+    } else {
+        beta = elasticity.at("value").get<double>();
+        elasticity["used"] = beta;
+    }
     json list = json::array();
     std::vector<double> logs;
     for (std::size_t i = 0; i < runs.size(); ++i) {
@@ -1199,20 +1299,23 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
                 ? group_reference.at({runs[i].config.grid, runs[i].config.threads})
                 : pooled;
         const double factor = gauge[i] / reference;
-        json row{{"path", runs[i].path}, {"gauge_cpu_s_per_sample", gauge[i]}, {"factor", factor}};
+        json row{{"path", runs[i].path},
+                 {"gauge_cpu_s_per_sample", gauge[i]},
+                 {"factor", factor},
+                 {"applied_factor", std::pow(factor, beta)}};
         if (mode == SpeedGauge::interval || mode == SpeedGauge::interval_mean) {
-            std::vector<double> inverse, factors;
-            for (double g :
-                 runs[i].interval_gauges_s(speed_gauge_half_window, mode == SpeedGauge::interval
-                                                                        ? SphRun::Pooling::median
-                                                                        : SphRun::Pooling::mean)) {
+            std::vector<double> inverse, factors, applied;
+            for (double g : interval_gauges[i]) {
                 factors.push_back(g / reference);
-                inverse.push_back(reference / g);
+                applied.push_back(std::pow(g / reference, beta));
+                inverse.push_back(1 / applied.back());
             }
             runs[i].scale_times(inverse);
             row["interval_factors"] = factors;
+            if (beta != 1)
+                row["interval_applied_factors"] = applied;
         } else {
-            runs[i].scale_times(1 / factor);
+            runs[i].scale_times(1 / std::pow(factor, beta));
         }
         logs.push_back(std::log(factor));
         list.push_back(row);
@@ -1221,6 +1324,10 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
     double ss = 0;
     for (double l : logs)
         ss += (l - mean) * (l - mean);
+    const std::string divided =
+        elasticity_rule == GaugeElasticity::fitted && beta != 1
+            ? "divided by the factor raised to the elasticity the runs show (elasticity.used)"
+            : "divided by it";
     out = {{"applied", true},
            {"mode", mode == SpeedGauge::interval        ? "interval"
                     : mode == SpeedGauge::interval_mean ? "interval-mean"
@@ -1233,14 +1340,15 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
                                 (mode == SpeedGauge::interval ? "median" : "mean") +
                                 " of the rank-intervals weighted by their compute, over the runs' "
                                 "median (each run's whole gauge) is the host's speed factor "
-                                "then; every time the interval measured is divided by it, so "
-                                "the model is at the median run's speed"
+                                "then; every time the interval measured is " +
+                                divided + ", so the model is at the median run's speed"
                           : "each run's speed-gauge CPU seconds per sample over the runs' "
                             "median is the host's speed factor during the run; every time the "
-                            "run measured is divided by it, so the model is at the median run's "
-                            "speed"},
+                            "run measured is " +
+                                divided + ", so the model is at the median run's speed"},
            {"log_sd", logs.size() > 1 ? std::sqrt(ss / static_cast<double>(logs.size() - 1)) : 0.0},
            {"runs", list}};
+    out["elasticity"] = elasticity;
     if (rule == GaugeReference::grid) {
         out["references"] = references;
         out["method"] = out["method"].get<std::string>() +
@@ -1264,7 +1372,11 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
                const CalibrateOptions &opt) {
     // Every time below at the gauge's reference speed where the runs carry it.
     std::vector<SphRun> runs = measured;
-    const json speed_gauge = speed_normalise(runs, opt.speed_gauge, opt.gauge_reference);
+    const json speed_gauge =
+        speed_normalise(runs, opt.speed_gauge, opt.gauge_reference, opt.gauge_elasticity,
+                        machine.contains("topology") && machine.at("topology").is_object()
+                            ? machine.at("topology").value("cores", 0)
+                            : 0);
     if (runs.empty())
         throw UsageError("calibrate needs at least one SPH report (--runs)");
     const std::string host = machine.value("host", "");
@@ -1400,7 +1512,8 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
         std::map<std::string, double> speed;
         std::map<std::string, std::string> setup_of;
         for (const auto &g : speed_gauge.at("runs"))
-            speed[g.at("path").get<std::string>()] = g.at("factor").get<double>();
+            speed[g.at("path").get<std::string>()] =
+                g.value("applied_factor", g.at("factor").get<double>());
         for (const auto &r : runs)
             setup_of[r.path] = r.config.setup;
         json as_measured = compute;

@@ -895,6 +895,9 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  {"speed_gauge_reference_cpu_s",
                   gauge_reference_for(model.value("speed_gauge", json(nullptr)), req.grid,
                                       req.threads)},
+                 // How far a run's time follows its gauge (calibrate's elasticity; 1: whole).
+                 {"speed_gauge_elasticity",
+                  gauge_elasticity_for(model.value("speed_gauge", json(nullptr)))},
                  {"wall_band", wall_band(model, req.threads, wall)},
                  {"totals",
                   {{"compute_s", compute}, {"comm_s", comm}, {"wait_s", wait}, {"idle_s", idle}}},

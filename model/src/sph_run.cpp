@@ -55,6 +55,9 @@ void from_json(const json &j, RankStats &r) {
     r.probe_shift_s = j.contains("probe_shift_s") ? figure(j, "probe_shift_s") : 0.0;
     r.gauge_cpu_s = j.contains("gauge_cpu_s") ? figure(j, "gauge_cpu_s") : 0.0;
     r.gauge_samples = j.contains("gauge_samples") ? figure(j, "gauge_samples") : 0.0;
+    r.core_round_trip_s = j.contains("core_round_trip_s") ? figure(j, "core_round_trip_s") : 0.0;
+    r.core_round_trip_samples =
+        j.contains("core_round_trip_samples") ? figure(j, "core_round_trip_samples") : 0.0;
     r.hidden_predict_s =
         j.contains("comm_hidden_predict_s") ? figure(j, "comm_hidden_predict_s") : 0.0;
     if (j.contains("shifts"))
@@ -144,6 +147,24 @@ double SphRun::gauge_per_sample_s() const {
     if (weight > 0)
         return weighted / weight;
     return samples > 0 ? cpu / samples : 0.0;
+}
+
+std::optional<SphRun::CoreLatency> SphRun::core_latency(double far_s) const {
+    CoreLatency c;
+    double total = 0, far = 0;
+    for (const auto &iv : intervals)
+        for (const auto &r : iv.ranks)
+            if (r.core_round_trip_samples > 0) {
+                total += r.core_round_trip_s;
+                c.samples += r.core_round_trip_samples;
+                if (r.core_round_trip_s / r.core_round_trip_samples > far_s)
+                    far += r.core_round_trip_samples;
+            }
+    if (!(c.samples > 0))
+        return std::nullopt;
+    c.round_trip_s = total / c.samples;
+    c.far_fraction = far / c.samples;
+    return c;
 }
 
 namespace {

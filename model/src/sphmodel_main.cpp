@@ -24,6 +24,7 @@ struct Options {
     std::string run_level = "pooled";
     std::string speed_gauge = "interval";
     std::string gauge_reference = "pooled";
+    std::string gauge_elasticity = "one";
     bool walls_term = false;
     std::string jitter_form = "auto";
     PredictRequest predict;
@@ -93,6 +94,13 @@ int run(int argc, char **argv) {
                     "differently with what runs around it, model/NOTES.md session 58)")
         ->capture_default_str()
         ->check(cli::IsMember({"grid", "pooled"}));
+    cal->add_option("--speed-gauge-elasticity", o.gauge_elasticity,
+                    "one (the times divided by the gauge's factor itself, sessions 50-70) or "
+                    "fitted (by the factor raised to the elasticity of the runs' compute to the "
+                    "gauge, fitted on these runs and reported either way: 0.45-0.88 on this VM, "
+                    "yet worse in replays, model/NOTES.md session 70)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"fitted", "one"}));
     cal->add_flag("--walls-term", o.walls_term,
                   "Also offer the compute-cost term walls (every wall particle of a rank), as "
                   "sessions 1-50 did (a rank's dry walls cost nothing measurable: model/NOTES.md, "
@@ -231,6 +239,7 @@ int run(int argc, char **argv) {
              : o.speed_gauge == "run"           ? SpeedGauge::run
                                                 : SpeedGauge::off,
              o.gauge_reference == "pooled" ? GaugeReference::pooled : GaugeReference::grid,
+             o.gauge_elasticity == "one" ? GaugeElasticity::one : GaugeElasticity::fitted,
              o.walls_term,
              o.jitter_form == "auto"   ? std::nullopt
              : o.jitter_form == "sqrt" ? std::optional<JitterForm>(JitterForm::sqrt)

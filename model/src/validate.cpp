@@ -343,15 +343,20 @@ json validate(const json &header, const std::vector<json> &predictions,
                                      ? p->at("speed_gauge_reference_cpu_s").get<double>()
                                      : 0.0;
         const double gauge = m.gauge_per_sample_s();
-        const double speed = reference > 0 && gauge > 0 ? gauge / reference : 0.0;
+        // The model's elasticity of time to the gauge (predictions before session 70: whole).
+        const double elasticity = p->value("speed_gauge_elasticity", 1.0);
+        const double speed =
+            reference > 0 && gauge > 0 ? std::pow(gauge / reference, elasticity) : 0.0;
         json speed_row = nullptr;
         if (speed > 0) {
             const double at_speed = predicted_wall * speed;
             corrected_errors.push_back(std::abs(rel(at_speed, m.wall_s)));
-            speed_factors.push_back(speed);
+            speed_factors.push_back(gauge / reference);
             speed_row = {{"gauge_cpu_s_per_sample", gauge},
                          {"reference_cpu_s_per_sample", reference},
                          {"factor", speed},
+                         {"gauge_factor", gauge / reference},
+                         {"elasticity", elasticity},
                          {"predicted_wall_s_at_run_speed", at_speed},
                          {"wall_error", rel(at_speed, m.wall_s)}};
         }

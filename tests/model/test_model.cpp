@@ -1439,6 +1439,103 @@ TEST(Calibrate, SpeedGaugePutsTheRunsAtOneHostSpeed) {
     EXPECT_DOUBLE_EQ(off[1].wall_s, 3.0);
 }
 
+// The elasticity of the compute to the gauge, recovered from synthetic runs: each busy
+// rank-interval's compute per interaction is its rank's level, times a trend through the run,
+// times the interval's gauge (over a reference) raised to a planted 0.5, times a small noise;
+// the gauge wanders in spells as this VM's does. A run above the cores (its timers hold the
+// time it waited for a core) follows the gauge whole and stays out. fitted then divides each
+// interval's times by its factor raised to the estimate; one by the factor itself.
+TEST(Calibrate, GaugeElasticityIsRecoveredAndAppliedWhenFitted) {
+    constexpr double planted = 0.5;
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0, 0.01);
+    std::uniform_real_distribution<double> spell(0, 1);
+    auto make = [&](int ranks, double follow) {
+        SphRun r = measured_run(1.0);
+        r.config.ranks = ranks;
+        r.intervals.clear();
+        const int n = 12;
+        double slow = 1;
+        for (int v = 0; v < n; ++v) {
+            if (spell(rng) < 0.3) // a spell starts or ends
+                slow = slow > 1 ? 1 : 1.3 + 0.5 * spell(rng);
+            IntervalStats iv;
+            iv.step = 100 * (v + 1);
+            iv.time_s = 0.01 * (v + 1);
+            const double t = (v + 0.5) / n;
+            for (int k = 0; k < ranks; ++k) {
+                RankStats rk;
+                rk.steps = 100;
+                rk.field = 1000;
+                rk.interactions = 40000;
+                const double cost = 30e-9 * (1 + 0.3 * k) * (1 + 0.2 * t + 0.1 * t * t) *
+                                    std::pow(slow, follow) * std::exp(noise(rng));
+                rk.timers = {
+                    {"comp_s", cost * rk.interactions * rk.steps}, {"comm_s", 0}, {"wait_s", 0}};
+                rk.gauge_cpu_s = 10 * 40e-6 * slow;
+                rk.gauge_samples = 10;
+                iv.ranks.push_back(rk);
+            }
+            r.intervals.push_back(iv);
+        }
+        return r;
+    };
+    std::vector<SphRun> runs;
+    for (int k = 0; k < 6; ++k)
+        runs.push_back(make(k % 2 + 1, planted));
+    const auto within = runs;
+    runs.push_back(make(3, 1.0)); // above the 2 cores
+    // Each interval's own gauge (no pooling), as the planted spells are per interval.
+    std::vector<std::vector<double>> gauges;
+    for (const auto &r : runs) {
+        gauges.emplace_back();
+        for (const auto &iv : r.intervals)
+            gauges.back().push_back(iv.ranks[0].gauge_cpu_s / iv.ranks[0].gauge_samples);
+    }
+    const auto e = gauge_elasticity(runs, gauges, 2);
+    ASSERT_FALSE(e.is_null());
+    EXPECT_EQ(e["groups"].get<int>(), 9); // six runs of 1 or 2 ranks within the cores
+    EXPECT_LT(e["se"].get<double>(), 0.02);
+    EXPECT_NEAR(e["value"].get<double>(), planted, 3 * e["se"].get<double>());
+    // With the run above the cores let in, the estimate moves toward its whole factor.
+    EXPECT_GT(gauge_elasticity(runs, gauges, 0)["value"].get<double>(), e["value"].get<double>());
+    // One run's gauge flat: no spread left once each group's trend is out.
+    std::vector<SphRun> flat{make(1, planted)};
+    for (auto &iv : flat[0].intervals)
+        iv.ranks[0].gauge_cpu_s = 10 * 40e-6;
+    EXPECT_TRUE(gauge_elasticity(flat, {std::vector<double>(12, 40e-6)}, 2).is_null());
+
+    // Applied: fitted leaves less of the gauge in the times than one does. The pooled-window
+    // gauge blurs the spells' edges, so compare the spread of ln(compute per interaction).
+    auto spread = [](const std::vector<SphRun> &rs) {
+        std::vector<double> v;
+        for (const auto &r : rs)
+            for (const auto &iv : r.intervals)
+                v.push_back(std::log(iv.ranks[0].compute_s()));
+        const double m = std::accumulate(v.begin(), v.end(), 0.0) / v.size();
+        double ss = 0;
+        for (double x : v)
+            ss += (x - m) * (x - m);
+        return std::sqrt(ss / v.size());
+    };
+    auto fitted = within, whole = within;
+    const auto jf = speed_normalise(fitted, SpeedGauge::interval, GaugeReference::pooled,
+                                    GaugeElasticity::fitted, 2);
+    const auto jo = speed_normalise(whole, SpeedGauge::interval, GaugeReference::pooled,
+                                    GaugeElasticity::one, 2);
+    const double used = jf["elasticity"]["used"].get<double>();
+    EXPECT_GT(used, 0.3);
+    EXPECT_LT(used, 0.7);
+    EXPECT_DOUBLE_EQ(jo["elasticity"]["used"].get<double>(), 1.0);
+    EXPECT_NEAR(jo["elasticity"]["value"].get<double>(), used, 1e-12); // reported either way
+    EXPECT_NEAR(jf["runs"][0]["applied_factor"].get<double>(),
+                std::pow(jf["runs"][0]["factor"].get<double>(), used), 1e-12);
+    EXPECT_LT(spread(fitted), spread(whole));
+    EXPECT_DOUBLE_EQ(gauge_elasticity_for(jf), used);
+    EXPECT_DOUBLE_EQ(gauge_elasticity_for(jo), 1.0);
+    EXPECT_DOUBLE_EQ(gauge_elasticity_for(nlohmann::json(nullptr)), 1.0);
+}
+
 // --speed-gauge-reference grid: each grid and thread count's runs at their own median gauge.
 // Two table runs whose gauge reads 1.2 and two sorted runs whose gauge reads 1.0 (the same host
 // speed, the gauge biased by what runs around it) keep their times; pooled scales each pair by

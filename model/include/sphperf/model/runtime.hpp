@@ -107,6 +107,14 @@ constexpr int speed_gauge_half_window = 1;
 // runs a few per cent above their own speed; but replayed on session 57's and earlier stored
 // jobs (256-bit) grid raised the max in 7 of 8 quiet ones (model/NOTES.md, session 58).
 enum class GaugeReference { grid, pooled };
+// How far the runs' times follow the gauge. one (the default): divided by the factor itself
+// (sessions 50-70); fitted: by the factor raised to the elasticity beta of the compute per
+// interaction to the interval's gauge, estimated from the calibration runs themselves
+// (gauge_elasticity, reported either way). On this VM the compute's logarithm rose by a half
+// to nine tenths of the gauge's in a slow spell (beta 0.45-0.88 in seven main jobs, standard
+// errors 0.02-0.04), yet replayed on those jobs fitted made the wall median worse in six of
+// seven (model/NOTES.md, session 70): not the default.
+enum class GaugeElasticity { fitted, one };
 struct CalibrateOptions {
     bool allow_other_host = false;
     TermSelection term_selection = TermSelection::levelled_one_se;
@@ -116,6 +124,7 @@ struct CalibrateOptions {
     // Put every calibration run at one host speed by its speed gauge (speed_normalise).
     SpeedGauge speed_gauge = SpeedGauge::interval;
     GaugeReference gauge_reference = GaugeReference::pooled;
+    GaugeElasticity gauge_elasticity = GaugeElasticity::one;
     // Offer the cost term `walls` (every wall particle of a rank) to the term selection, as
     // sessions 1-50 did; session 51 measured that a rank's dry walls cost nothing (calibrate.cpp).
     bool walls_term = false;
@@ -135,8 +144,29 @@ struct CalibrateOptions {
 // GaugeReference::grid each run's factor is over the median of its grid and thread count's runs
 // ("references": [{grid, threads, reference_cpu_s_per_sample, runs}]); the pooled median stays
 // in "reference_cpu_s_per_sample".
+// With GaugeElasticity::fitted the factors are raised to the elasticity gauge_elasticity
+// estimates from these runs ("elasticity": its estimate, and the exponent used: 1 where the
+// estimate's standard error is above max_elasticity_se or there is none); each run row then
+// carries "applied_factor" (and "interval_applied_factors") beside the gauge's own "factor".
+// `cores`: the node's, so that runs above them (their timers hold the time they were
+// descheduled) stay out of the estimate; 0: none left out.
 nlohmann::json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode,
-                               GaugeReference reference = GaugeReference::pooled);
+                               GaugeReference reference = GaugeReference::pooled,
+                               GaugeElasticity elasticity = GaugeElasticity::one, int cores = 0);
+// The elasticity of the runs' compute to the speed gauge: least squares (GSL, fit_linear) of
+// ln(compute per step per interaction) of every busy rank-interval on ln(the interval's gauge,
+// pooled as `interval_gauges` holds it), with an intercept, a slope and a curvature in the
+// run's time per run and rank (the flow's own trend through a run, and each rank's level, are
+// theirs, not the gauge's); only runs within `cores` (0: all) and ranks with 4 or more such
+// intervals. Returns {"value", "se", "points", "groups", "method"}, or null with too few
+// points. `interval_gauges[i]` has one entry per interval of runs[i].
+nlohmann::json gauge_elasticity(const std::vector<SphRun> &runs,
+                                const std::vector<std::vector<double>> &interval_gauges, int cores);
+// Above this standard error the fitted elasticity is not used (the factor is applied whole).
+constexpr double max_elasticity_se = 0.1;
+// The exponent a model applies to the gauge's factor (model.json speed_gauge), 1 where it
+// has none.
+double gauge_elasticity_for(const nlohmann::json &speed_gauge);
 // The gauge reference a prediction of `grid` at `threads` threads is at (model.json's
 // speed_gauge): its group's where calibrate kept one per grid, else the pooled one; null when
 // the gauge was not applied.

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -29,6 +30,9 @@ struct RankStats {
     // The speed gauge (sph/include/sphperf/sph/gauge.hpp): CPU seconds of its samples, total,
     // and how many (0: none, older reports or --speed-gauge-every 0)
     double gauge_cpu_s = 0, gauge_samples = 0;
+    // The core latency gauge (gauge.hpp): its readings' round trips between threads 0 and 1,
+    // total, and how many (0: one thread, threads taking turns, or an older report)
+    double core_round_trip_s = 0, core_round_trip_samples = 0;
     std::map<std::string, double> timers; // "pairs_s", "comm_s", "wait_s", ...
     // comm_s and comm_predict_s by exchange (sph::shift_keys); older reports: zeros
     sph::ShiftTimes shift_comm_s{}, shift_predict_s{};
@@ -80,6 +84,13 @@ struct SphRun {
     // The speed gauge's CPU seconds per sample over the whole run: each rank-interval's mean
     // weighted by its compute (0: no samples).
     double gauge_per_sample_s() const;
+    // The core latency gauge over the whole run: the mean round trip of its samples and the
+    // share of them in rank-intervals whose mean is above `far_s` (the far mode); nullopt
+    // where the run has no sample.
+    struct CoreLatency {
+        double round_trip_s = 0, far_fraction = 0, samples = 0;
+    };
+    std::optional<CoreLatency> core_latency(double far_s) const;
     // The same per interval, pooled over the intervals within `half_window` of it (each
     // rank-interval weighted by its compute; by its samples where no rank computed; the whole
     // run's figure where the window has no sample): the host's speed as the run went. Pooled
