@@ -506,6 +506,27 @@ def markdown(model, validation, args, out):
             lines.append(line)
         elif gauge:
             lines.append(f"Speed gauge not applied: {gauge.get('reason', '')}.")
+        # The vCPUs' latency mode of the runs of two threads (sph's core latency gauge).
+        cal_lat = model.get("core_latency") or []
+        val_lat = [r for r in validation["configurations"] if r.get("core_latency")]
+        if cal_lat or val_lat:
+            far_s = (cal_lat or [r["core_latency"] for r in val_lat])[0]["far_above_s"]
+            far_runs = sum(c["far_fraction"] > 0.5 for c in cal_lat)
+            line = (f"Core latency (sph's gauge: a cache line passed between threads 0 and 1, far "
+                    f"above {far_s * 1e9:.0f} ns; this VM's vCPUs switch between about 60 and "
+                    f"350 ns in spells, sph/NOTES.md session 70): ")
+            if cal_lat:
+                line += (f"the calibration runs of 2 threads read {min(c['round_trip_s'] for c in cal_lat) * 1e9:.0f}-"
+                         f"{max(c['round_trip_s'] for c in cal_lat) * 1e9:.0f} ns, {far_runs} of "
+                         f"{len(cal_lat)} mostly far")
+            if val_lat:
+                line += ("; " if cal_lat else "") + "the validation runs " + ", ".join(
+                    f"{r['setup']} {'+'.join(r['grid']) if isinstance(r['grid'], list) else r['grid']} "
+                    f"s{r['scale']:g} {r['ranks']} x {r['threads']}: "
+                    f"{r['core_latency']['round_trip_s'] * 1e9:.0f} ns "
+                    f"({100 * r['core_latency']['far_fraction']:.0f} % far), wall error "
+                    f"{100 * r['wall_error']:+.1f} %" for r in val_lat)
+            lines.append(line + ".")
         band = s.get("wall_band")
         scatter = model.get("level_scatter", {}).get("per_threads", [])
         if band and scatter:

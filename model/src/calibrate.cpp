@@ -1455,6 +1455,15 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
         model["machine"]["exchange"] = machine.at("exchange");
     model["calibration_runs"] = sources;
     model["speed_gauge"] = speed_gauge;
+    // The calibration runs of 2+ threads per rank: the mode of the vCPUs' latency each ran in
+    // (sph's core latency gauge), beside the validation runs' (validate: core_latency).
+    json latency = json::array();
+    for (const auto &r : measured)
+        if (json c = r.core_latency_json(); !c.is_null()) {
+            c["path"] = r.path;
+            latency.push_back(c);
+        }
+    model["core_latency"] = latency;
     model["record_bytes"] = record_bytes;
     // The thesis' laws, per setup (a still tank packs its particles differently from a
     // collapsing dam) and pooled; interactions (ordered pairs acting on an owned particle)

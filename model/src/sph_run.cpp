@@ -167,6 +167,16 @@ std::optional<SphRun::CoreLatency> SphRun::core_latency(double far_s) const {
     return c;
 }
 
+nlohmann::json SphRun::core_latency_json() const {
+    const auto c = core_latency(far_core_round_trip_s);
+    if (!c)
+        return nullptr;
+    return {{"round_trip_s", c->round_trip_s},
+            {"far_fraction", c->far_fraction},
+            {"samples", c->samples},
+            {"far_above_s", far_core_round_trip_s}};
+}
+
 namespace {
 // The weighted median of (value, weight) pairs with positive weights: the value where the
 // cumulative weight reaches half the total (the mean of two values where it lands exactly on

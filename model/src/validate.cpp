@@ -380,6 +380,8 @@ json validate(const json &header, const std::vector<json> &predictions,
                  {"predicted_wall_s", p->at("wall_s")},
                  {"wall_error", err},
                  {"speed_gauge", speed_row},
+                 // Ranks of 2+ threads: the mode of the vCPUs' latency the run ran in.
+                 {"core_latency", m.core_latency_json()},
                  {"wall_band", band_check(p->value("wall_band", json(nullptr)), predicted_wall,
                                           m.wall_s, band_z, band_sd)},
                  {"first_step_all_ranks_busy", onset},

@@ -1536,6 +1536,29 @@ TEST(Calibrate, GaugeElasticityIsRecoveredAndAppliedWhenFitted) {
     EXPECT_DOUBLE_EQ(gauge_elasticity_for(nlohmann::json(nullptr)), 1.0);
 }
 
+// The core latency of a run of two threads: the mean of its samples' round trips and the share
+// of them in rank-intervals whose mean is far; none without samples (one thread, threads taking
+// turns, older reports).
+TEST(SphRunReport, CoreLatencyIsTheSamplesMeanAndItsFarShare) {
+    SphRun r = measured_run(1.0);
+    EXPECT_TRUE(r.core_latency_json().is_null());
+    r.intervals.push_back(r.intervals[0]);
+    r.intervals.push_back(r.intervals[0]);
+    const double trips[3] = {60e-9, 65e-9, 330e-9};
+    for (int k = 0; k < 3; ++k) {
+        r.intervals[k].ranks[0].core_round_trip_s = 10 * trips[k];
+        r.intervals[k].ranks[0].core_round_trip_samples = 10;
+    }
+    r.intervals[2].ranks[0].core_round_trip_samples = 20; // a longer interval, the same mean
+    r.intervals[2].ranks[0].core_round_trip_s = 20 * trips[2];
+    const auto j = r.core_latency_json();
+    ASSERT_FALSE(j.is_null());
+    EXPECT_NEAR(j["round_trip_s"].get<double>(), (600e-9 + 650e-9 + 6600e-9) / 40, 1e-15);
+    EXPECT_DOUBLE_EQ(j["far_fraction"].get<double>(), 0.5);
+    EXPECT_DOUBLE_EQ(j["samples"].get<double>(), 40);
+    EXPECT_DOUBLE_EQ(j["far_above_s"].get<double>(), SphRun::far_core_round_trip_s);
+}
+
 // --speed-gauge-reference grid: each grid and thread count's runs at their own median gauge.
 // Two table runs whose gauge reads 1.2 and two sorted runs whose gauge reads 1.0 (the same host
 // speed, the gauge biased by what runs around it) keep their times; pooled scales each pair by

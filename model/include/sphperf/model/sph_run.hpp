@@ -3,6 +3,8 @@
 // a non-finite or negative figure is a UsageError naming the file and the key.
 #include "sphperf/sph/timers.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -91,6 +93,11 @@ struct SphRun {
         double round_trip_s = 0, far_fraction = 0, samples = 0;
     };
     std::optional<CoreLatency> core_latency(double far_s) const;
+    // This VM's two vCPUs pass a line in about 60 ns in most spells, about 350 ns in the far
+    // ones (sph/NOTES.md, session 70): a rank-interval whose mean is above this is far.
+    static constexpr double far_core_round_trip_s = 150e-9;
+    // core_latency as JSON {round_trip_s, far_fraction, samples, far_above_s}, null: none.
+    nlohmann::json core_latency_json() const;
     // The same per interval, pooled over the intervals within `half_window` of it (each
     // rank-interval weighted by its compute; by its samples where no rank computed; the whole
     // run's figure where the window has no sample): the host's speed as the run went. Pooled
