@@ -2,7 +2,12 @@
 # so a report never names a stale commit after an incremental rebuild.
 string(TOUPPER "${CMAKE_BUILD_TYPE}" _sphperf_bt)
 get_directory_property(_sphperf_opts COMPILE_OPTIONS)
-string(JOIN " " SPHPERF_BUILD_FLAGS ${CMAKE_CXX_FLAGS} ${CMAKE_CXX_FLAGS_${_sphperf_bt}} ${_sphperf_opts})
+# And the definitions that choose code (SPHPERF_PREFER_AVX2_KERNELS: which kernels Cell+Sorted
+# runs), as -D flags.
+get_directory_property(_sphperf_defs COMPILE_DEFINITIONS)
+list(TRANSFORM _sphperf_defs PREPEND "-D")
+string(JOIN " " SPHPERF_BUILD_FLAGS ${CMAKE_CXX_FLAGS} ${CMAKE_CXX_FLAGS_${_sphperf_bt}} ${_sphperf_opts}
+       ${_sphperf_defs})
 set(SPHPERF_BUILD_INFO_CPP ${CMAKE_BINARY_DIR}/generated/build_info.cpp)
 
 add_custom_target(sphperf_build_info

@@ -458,8 +458,8 @@ CAL_EXTRA="--speed-gauge run" beside model_and_validate "$out/run-speed-gauge" "
 CAL_EXTRA="--speed-gauge interval-mean" beside model_and_validate "$out/mean-gauge-window" "$rule" froude
 # Each interval's gauge factor raised to the elasticity of the calibration runs' compute to the
 # gauge (calibrate --speed-gauge-elasticity fitted) instead of applied whole (model/NOTES.md,
-# session 70: the compute follows the gauge by about half to nine tenths in logs, yet the
-# replayed wall median was worse in six of seven jobs).
+# session 70: the compute follows the gauge by 0.4-0.9 in logs, yet the
+# replayed wall median was worse in six of eight jobs).
 CAL_EXTRA="--speed-gauge-elasticity fitted" beside model_and_validate "$out/gauge-elasticity-fitted" "$rule" froude
 # The jitter's deviation growing as the step's square root (sessions 15-60) instead of the form
 # the calibration runs' waits choose (session 61).

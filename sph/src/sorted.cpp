@@ -2,7 +2,7 @@
 
 #include <omp.h>
 
-#if (defined(__AVX512F__) && defined(__AVX512VL__)) || (defined(__AVX2__) && defined(__FMA__))
+#if defined(SPHPERF_AVX2_KERNELS) || defined(SPHPERF_AVX512_KERNELS)
 #include <immintrin.h>
 #endif
 
@@ -628,7 +628,7 @@ void pack_range_portable(const CellSorted::View &v, double xi, double yi, double
     out.remote += remote;
 }
 
-#if defined(__AVX512F__) && defined(__AVX512VL__)
+#if defined(SPHPERF_AVX512_KERNELS)
 // The sum of the eight lanes. Not _mm512_reduce_add_epi64: GCC 12's header builds it on an
 // undefined register and warns (-Wuninitialized, GCC bug 105593) in every unit inlining it.
 std::uint64_t lane_sum(__m512i v) {
@@ -641,7 +641,7 @@ std::uint64_t lane_sum(__m512i v) {
 }
 #endif
 
-#if !(defined(__AVX512F__) && defined(__AVX512VL__)) && defined(__AVX2__) && defined(__FMA__)
+#if defined(SPHPERF_AVX2_KERNELS)
 // The tables of the AVX2 packing, by the 4-bit mask of the lanes kept: the kept lanes' numbers
 // in order (then zeros), which move both the indices and the separations (as floats,
 // _mm_permutevar_ps); and the load masks of a tail of 0-4 lanes.
@@ -671,7 +671,7 @@ struct Compress4 {
 const Compress4 compress4;
 #endif
 
-#if !(defined(__AVX512F__) && defined(__AVX512VL__)) && defined(__AVX2__) && defined(__FMA__)
+#if defined(SPHPERF_AVX2_KERNELS)
 // AVX2 has no compress: four candidates at a time, their kept lanes moved to the front by a
 // permutation looked up by the 4-bit mask and stored whole (the next store overwrites the
 // rest), the tail by masked loads. On a Zen 3 host the plain loop held about 40 % of the
@@ -764,7 +764,7 @@ template <Counted count, Partners partners, int K>
 template <Counted count, Partners partners>
 void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, std::size_t b,
                 std::size_t e, PackedCandidates &out) {
-#if defined(__AVX512F__) && defined(__AVX512VL__)
+#if defined(SPHPERF_AVX512_KERNELS)
     // Eight candidates at a time: the kept lanes compressed to the front of a register and
     // stored whole (the next store overwrites the rest), the tail by masked loads; counts in
     // vector lanes, added up once. GCC 12 vectorises neither the compression nor the tail.
@@ -813,7 +813,7 @@ void pack_range(const CellSorted::View &v, double xi, double yi, double r2max, s
         out.in_range += (n - packed_before) + lane_sum(at_zero);
     if constexpr (count == Counted::remote)
         out.remote += lane_sum(remote);
-#elif defined(__AVX2__) && defined(__FMA__)
+#elif defined(SPHPERF_AVX2_KERNELS)
     PackedCandidates *one[1] = {&out};
     const double xs[1] = {xi}, ys[1] = {yi};
     pack_range_avx2<count, partners, 1>(v, xs, ys, r2max, b, e, one);
@@ -830,7 +830,7 @@ constexpr int batch_size = pack_batch_size;
 template <Counted count, Partners partners>
 void pack_ranges(const CellSorted::View &v, const double *xi, const double *yi, int batch,
                  double r2max, std::size_t b, std::size_t e, PackedCandidates *const *out) {
-#if !(defined(__AVX512F__) && defined(__AVX512VL__)) && defined(__AVX2__) && defined(__FMA__)
+#if defined(SPHPERF_AVX2_KERNELS)
     static_assert(batch_size == 4);
     switch (batch) {
     case 1:
@@ -952,7 +952,7 @@ namespace {
 template <class E> [[gnu::always_inline]] inline E lane_min0(E x) {
     return std::min(x, E{0});
 }
-#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+#if defined(SPHPERF_AVX2_KERNELS)
 [[gnu::always_inline]] inline Lanes8 lane_sqrt(Lanes8 x) {
     return _mm256_sqrt_ps(x);
 }
@@ -1010,7 +1010,7 @@ force_term(const ForceConstants<E> &c, const BranchFreeKernel::ScaledSlopeOf<E> 
     return {-f * dx, -f * dy};
 }
 
-#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+#if defined(SPHPERF_AVX2_KERNELS)
 static_assert(std::is_same_v<PairReal, float>, "the AVX2 pair loops are written for floats");
 
 // PairSum::total() of the 16 lanes held as two groups of eight, in registers: the same tree
@@ -1086,7 +1086,7 @@ template <bool one_mass>
                                                       PairReal back, PairReal vxi, PairReal vyi) {
     const std::uint32_t *idx = nbr.index;
     const PairReal *sx = nbr.dx, *sy = nbr.dy;
-#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+#if defined(SPHPERF_AVX2_KERNELS)
     constexpr int groups = pair_lanes / 8;
     Lanes8 sum[groups] = {};
     const Lanes8 vxi8 = _mm256_set1_ps(vxi), vyi8 = _mm256_set1_ps(vyi);
@@ -1127,7 +1127,7 @@ force_sum(const CellSorted::View &v, const PackView &nbr, const ForceConstants<P
           const PairKernel &k, const ForceParticle<PairReal> &i) {
     const std::uint32_t *idx = nbr.index;
     const PairReal *sx = nbr.dx, *sy = nbr.dy;
-#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+#if defined(SPHPERF_AVX2_KERNELS)
     constexpr int groups = pair_lanes / 8;
     Lanes8 sum_x[groups] = {}, sum_y[groups] = {};
     const auto group = [&](std::size_t q, int g) __attribute__((always_inline)) {

@@ -2,6 +2,8 @@
 // The memory model's counts (model/NOTES.md "Memory"), from our data structures: what one
 // stored particle and one stored interaction cost. Calibration adds the fixed part; `sph` uses
 // the counts alone to refuse, before it allocates, a run that cannot fit.
+#include "sphperf/kernel_isa.hpp"
+
 #include <string_view>
 
 namespace sphperf::model {
@@ -16,7 +18,7 @@ constexpr double bytes_per_interaction = 4 + 2 * 4 + 4;
 // Where sph builds its AVX2 pair loops (sph/sorted.hpp pair_records, the same condition; sph
 // checks the two agree), vx, vy, rho and P/rho^2 once more as a 16-byte record of floats
 // (the pair terms' precision, sph PairReal).
-#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+#if defined(SPHPERF_AVX2_KERNELS)
 constexpr double sorted_record_bytes = 4 * 4;
 #else
 constexpr double sorted_record_bytes = 0;

@@ -110,10 +110,11 @@ enum class GaugeReference { grid, pooled };
 // How far the runs' times follow the gauge. one (the default): divided by the factor itself
 // (sessions 50-70); fitted: by the factor raised to the elasticity beta of the compute per
 // interaction to the interval's gauge, estimated from the calibration runs themselves
-// (gauge_elasticity, reported either way). On this VM the compute's logarithm rose by a half
-// to nine tenths of the gauge's in a slow spell (beta 0.45-0.88 in seven main jobs, standard
+// (gauge_elasticity, reported either way). On this VM the compute's logarithm rose by 0.4
+// to 0.9 of the gauge's in a slow spell (beta 0.38-0.88 in eight main jobs, standard
 // errors 0.02-0.04), yet replayed on those jobs fitted made the wall median worse in six of
-// seven (model/NOTES.md, session 70): not the default.
+// eight and the mean max worse (19.5 against 17.9 %; model/NOTES.md, session 70): not the
+// default.
 enum class GaugeElasticity { fitted, one };
 struct CalibrateOptions {
     bool allow_other_host = false;

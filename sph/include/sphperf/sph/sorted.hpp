@@ -9,6 +9,7 @@
 // fixed 16-lane split of the in-range candidates so ordered, or an 8-lane one of each range for
 // Shepard). The result therefore does not depend on the thread count, the rank count, or where
 // the arrays sit in memory.
+#include "sphperf/kernel_isa.hpp"
 #include "sphperf/sph/config.hpp"
 #include "sphperf/sph/grid.hpp"
 #include "sphperf/sph/kernel.hpp"
@@ -78,9 +79,9 @@ template <class T> struct CacheLineAllocator {
 // transposed into four vectors: GCC emulates a gather with a scalar load and a shuffle a lane,
 // and the force pass gathers five fields a pair. On the Zen 3 host of session 63 (dam break,
 // scale 1; then doubles, four a vector) this took 13 % off the compute at 1 thread and 12 % at
-// 2 (sph/NOTES.md, session 63). AVX-512 builds keep the compiler's loops, measured faster on
-// those hosts.
-#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
+// 2 (sph/NOTES.md, session 63). AVX-512 kernels (kernel_isa.hpp) keep the compiler's loops,
+// measured faster on the Intel host; on the AMD Zen 4 host the AVX2 kernels are built instead.
+#if defined(SPHPERF_AVX2_KERNELS)
 inline constexpr bool pair_records = true;
 #else
 inline constexpr bool pair_records = false;
