@@ -459,7 +459,7 @@ CAL_EXTRA="--speed-gauge interval-mean" beside model_and_validate "$out/mean-gau
 # Each interval's gauge factor raised to the elasticity of the calibration runs' compute to the
 # gauge (calibrate --speed-gauge-elasticity fitted) instead of applied whole (model/NOTES.md,
 # session 70: the compute follows the gauge by 0.4-0.9 in logs, yet the
-# replayed wall median was worse in six of nine jobs, the mean max too).
+# replayed wall median was worse in six of ten jobs, the mean max too).
 CAL_EXTRA="--speed-gauge-elasticity fitted" beside model_and_validate "$out/gauge-elasticity-fitted" "$rule" froude
 # The jitter's deviation growing as the step's square root (sessions 15-60) instead of the form
 # the calibration runs' waits choose (session 61).

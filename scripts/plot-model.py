@@ -487,7 +487,7 @@ def markdown(model, validation, args, out):
                             f"--speed-gauge-elasticity fitted)." if beta != 1 else
                             f"and the factor is applied whole ({elasticity.get('reason', '')}; "
                             f"raised to the elasticity in gauge-elasticity-fitted/, which made "
-                            f"the wall median worse in six of nine replayed jobs, "
+                            f"the wall median worse in six of ten replayed jobs, "
                             f"model/NOTES.md session 70)."))
             if corrected:
                 f = s["speed_factor"]
@@ -635,8 +635,8 @@ def markdown(model, validation, args, out):
              "The gauge's factor applied whole (calibrate --speed-gauge-elasticity one, sessions "
              "50-70), kept in session 70 after the elasticity the calibration runs show (their "
              "compute per interaction on their interval's gauge, in logs, 0.38-0.88) was "
-             "replayed on nine main jobs and made the wall median worse in six and the mean max "
-             "worse (20.2 against 18.0 %): not tuned (the "
+             "replayed on ten main jobs and made the wall median worse in six and the mean max "
+             "worse (20.0 against 17.7 %): not tuned (the "
              "rule did not change). With each factor raised to this job's elasticity on the same "
              "runs: {o} (gauge-elasticity-fitted/validation.json)."),
             ("form_chosen_by" in (model.get("jitter") or {}),

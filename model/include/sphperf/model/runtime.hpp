@@ -111,9 +111,9 @@ enum class GaugeReference { grid, pooled };
 // (sessions 50-70); fitted: by the factor raised to the elasticity beta of the compute per
 // interaction to the interval's gauge, estimated from the calibration runs themselves
 // (gauge_elasticity, reported either way). On this VM the compute's logarithm rose by 0.4
-// to 0.9 of the gauge's in a slow spell (beta 0.38-0.88 in nine main jobs, standard
+// to 0.9 of the gauge's in a slow spell (beta 0.38-0.88 in ten main jobs, standard
 // errors 0.02-0.04), yet replayed on those jobs fitted made the wall median worse in six of
-// nine and the mean max worse (20.2 against 18.0 %; model/NOTES.md, session 70): not the
+// ten and the mean max worse (20.0 against 17.7 %; model/NOTES.md, session 70): not the
 // default.
 enum class GaugeElasticity { fitted, one };
 struct CalibrateOptions {
