@@ -333,43 +333,50 @@ void CellSorted::set_window(const CellWindow &w) {
     rows_ = w.rows() * rows_per_cell;
 }
 
-void CellSorted::sort_by_key(std::size_t first, std::size_t last, std::size_t base,
-                             std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out) {
+void CellSorted::prepare_sort(int threads, std::vector<std::uint32_t> &starts) {
     const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
     starts.resize(cells + 1);
-    fill_.resize(cells);
-    // Each thread files the particles of its block of cells (the last step's blocks, while the
-    // grid keeps its size), so it writes only positions it reads next; every thread scans all
-    // keys in order, so the result is the serial stable sort's.
-    const bool last_blocks = !blocks_.empty() && blocks_.back() == cells;
-    const int threads = last_blocks ? threads_ : std::max(omp_get_max_threads(), 1);
-    block_sizes_.assign(static_cast<std::size_t>(threads), 0);
-#pragma omp parallel num_threads(threads)
-    {
-        const auto [c0, c1] =
-            thread_cells(last_blocks ? blocks_.data() : nullptr, last_blocks ? threads_ : 0, cells);
-        std::fill(fill_.begin() + c0, fill_.begin() + c1, 0);
-        for (std::size_t i = first; i < last; ++i)
-            if (key_[i] >= c0 && key_[i] < c1)
-                ++fill_[key_[i]];
-        std::size_t size = 0;
-        for (std::size_t c = c0; c < c1; ++c)
-            size += fill_[c];
-        block_sizes_[omp_get_thread_num()] = size;
+    fill_.resize(static_cast<std::size_t>(threads) * cells);
+    block_sizes_.resize(static_cast<std::size_t>(threads));
+}
+
+void CellSorted::sort_by_key(std::size_t first, std::size_t last, std::size_t base,
+                             std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out) {
+    // Each thread counts its share of the particles into its own histogram, the offsets are
+    // summed over equal shares of the cells, and each thread files its share. Within a cell the
+    // threads' shares follow in thread order, so the result is the serial stable sort's. (Each
+    // thread scanning every key for its block of cells took as long at 2 threads as at 1.)
+    const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
+    const auto t = static_cast<std::size_t>(omp_get_thread_num());
+    const auto team = static_cast<std::size_t>(omp_get_num_threads());
+    const std::size_t n = last - first;
+    const std::size_t i0 = first + n * t / team, i1 = first + n * (t + 1) / team;
+    const std::size_t c0 = cells * t / team, c1 = cells * (t + 1) / team;
+    std::uint32_t *const mine = fill_.data() + t * cells;
+    const std::uint32_t *const keys = key_.data();
+    std::fill(mine, mine + cells, 0);
+    for (std::size_t i = i0; i < i1; ++i)
+        ++mine[keys[i]];
 #pragma omp barrier
-        std::size_t at = base;
-        for (int u = 0; u < omp_get_thread_num(); ++u)
-            at += block_sizes_[u];
-        for (std::size_t c = c0; c < c1; ++c) {
-            starts[c] = static_cast<std::uint32_t>(at);
-            at += std::exchange(fill_[c], static_cast<std::uint32_t>(at));
-        }
-        if (c1 == cells)
-            starts[cells] = static_cast<std::uint32_t>(at);
-        for (std::size_t i = first; i < last; ++i)
-            if (key_[i] >= c0 && key_[i] < c1)
-                out[fill_[key_[i]]++] = static_cast<std::uint32_t>(i);
+    std::size_t size = 0;
+    for (std::size_t u = 0; u < team; ++u)
+        for (std::size_t c = c0; c < c1; ++c)
+            size += fill_[u * cells + c];
+    block_sizes_[t] = size;
+#pragma omp barrier
+    std::size_t at = base;
+    for (std::size_t u = 0; u < t; ++u)
+        at += block_sizes_[u];
+    for (std::size_t c = c0; c < c1; ++c) {
+        starts[c] = static_cast<std::uint32_t>(at);
+        for (std::size_t u = 0; u < team; ++u)
+            at += std::exchange(fill_[u * cells + c], static_cast<std::uint32_t>(at));
     }
+    if (t + 1 == team)
+        starts[cells] = static_cast<std::uint32_t>(at);
+#pragma omp barrier
+    for (std::size_t i = i0; i < i1; ++i)
+        out[mine[keys[i]]++] = static_cast<std::uint32_t>(i);
 }
 
 void CellSorted::reorder(Particles &p, const CellWindow &w) {
@@ -378,9 +385,15 @@ void CellSorted::reorder(Particles &p, const CellWindow &w) {
     for (std::size_t i = 0; i < p.owned(); ++i)
         key_[i] = key_of(p.x[i], p.y[i]);
     order_.resize(p.owned());
+    const int threads = std::max(omp_get_max_threads(), 1);
+    prepare_sort(threads, reorder_starts_);
     // The fluid, then the walls after them (Particles keeps them apart).
-    sort_by_key(0, p.fluid(), 0, reorder_starts_, order_);
-    sort_by_key(p.fluid(), p.owned(), p.fluid(), reorder_starts_, order_);
+#pragma omp parallel num_threads(threads)
+    {
+        sort_by_key(0, p.fluid(), 0, reorder_starts_, order_);
+#pragma omp barrier
+        sort_by_key(p.fluid(), p.owned(), p.fluid(), reorder_starts_, order_);
+    }
     p.permute(order_);
 }
 
@@ -395,28 +408,45 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     const auto last_column = cells - static_cast<std::size_t>(rows_);
     owned_ = p.owned();
     key_.resize(n);
-    std::size_t misplaced = n; // the first particle in an edge column kept for ghosts
     const double mass = n > 0 ? p.mass[0] : 0.0;
-    bool one_mass = true;
-#pragma omp parallel for schedule(static) reduction(min : misplaced) reduction(&& : one_mass)
-    for (std::size_t i = 0; i < n; ++i) {
-        const std::uint32_t k = key_of(p.x[i], p.y[i]);
-        if ((west > 0 && k < static_cast<std::uint32_t>(rows_)) || (east > 0 && k >= last_column))
-            misplaced = std::min(misplaced, i);
-        key_[i] = k;
-        one_mass = one_mass && p.mass[i] == mass;
-    }
-    common_mass_ = one_mass ? mass : 0.0;
-    if (misplaced < n)
-        throw std::logic_error("sorted grid: particle " + std::to_string(p.id[misplaced]) +
-                               " sits in an edge column kept for ghosts");
     // Counting sort by cell, then by id within a cell. The west ghosts' slots come first: every
     // cell starts `west` positions later, and the edge columns kept for ghosts stay empty until
     // add_ghosts (sort_by_key writes every other position).
     orig_.resize(n + west + east);
     std::fill(orig_.begin(), orig_.begin() + static_cast<std::ptrdiff_t>(west), 0);
     std::fill(orig_.begin() + static_cast<std::ptrdiff_t>(west + n), orig_.end(), 0);
-    sort_by_key(0, n, west, start_, orig_);
+    const int threads = std::max(omp_get_max_threads(), 1);
+    prepare_sort(threads, start_);
+    checks_.assign(static_cast<std::size_t>(threads), Checks{n, true});
+    // One region for the keys and the sort (a region more per step costs a wake-up of the team).
+#pragma omp parallel num_threads(threads)
+    {
+        const auto t = static_cast<std::size_t>(omp_get_thread_num());
+        const auto team = static_cast<std::size_t>(omp_get_num_threads());
+        const std::size_t i0 = n * t / team, i1 = n * (t + 1) / team;
+        // The keys apart from the checks, so that the loop vectorises.
+        for (std::size_t i = i0; i < i1; ++i)
+            key_[i] = key_of(p.x[i], p.y[i]);
+        Checks &c = checks_[t];
+        for (std::size_t i = i0; i < i1; ++i) {
+            const std::uint32_t k = key_[i];
+            if (c.misplaced == n && ((west > 0 && k < static_cast<std::uint32_t>(rows_)) ||
+                                     (east > 0 && k >= last_column)))
+                c.misplaced = i; // the first particle in an edge column kept for ghosts
+            c.one_mass = c.one_mass && p.mass[i] == mass;
+        }
+        sort_by_key(0, n, west, start_, orig_);
+    }
+    std::size_t misplaced = n;
+    bool one_mass = true;
+    for (const Checks &c : checks_) {
+        misplaced = std::min(misplaced, c.misplaced);
+        one_mass = one_mass && c.one_mass;
+    }
+    common_mass_ = one_mass ? mass : 0.0;
+    if (misplaced < n)
+        throw std::logic_error("sorted grid: particle " + std::to_string(p.id[misplaced]) +
+                               " sits in an edge column kept for ghosts");
     cut_blocks();
     sort_cells_by_id(p, 0, cells);
     for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})

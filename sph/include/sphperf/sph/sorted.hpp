@@ -231,6 +231,9 @@ private:
                      int last_column);
     // Stable counting sort of [first, last) by key_: starts[c] becomes the first position of
     // cell c (cells + 1 entries, counted from `base`), out[starts[c]...] its indices in order.
+    // Called by every thread of a parallel region (prepare_sort before it, for its team size);
+    // it ends without a barrier.
+    void prepare_sort(int threads, std::vector<std::uint32_t> &starts);
     void sort_by_key(std::size_t first, std::size_t last, std::size_t base,
                      std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out);
     void sort_cells_by_id(const Particles &p, std::size_t first_cell, std::size_t last_cell);
@@ -279,8 +282,15 @@ private:
     static constexpr std::size_t record_size = 4; // View::records' values per position
     std::vector<PairReal, CacheLineAllocator<PairReal>> records_;
     std::vector<std::uint32_t> orig_, start_, key_, blocks_;
-    std::vector<std::uint32_t> fill_;        // sort_by_key's next position per cell
-    std::vector<std::size_t> block_sizes_;   // sort_by_key's particles per block
+    // sort_by_key's: per thread, its particles per cell, then its next position per cell
+    // (thread t's cells at [t x cells, (t + 1) x cells)); the particles of each thread's cells.
+    std::vector<std::uint32_t> fill_;
+    std::vector<std::size_t> block_sizes_;
+    struct alignas(64) Checks { // update's, per thread: one cache line each
+        std::size_t misplaced;  // the first index in an edge column kept for ghosts, else n
+        bool one_mass;
+    };
+    std::vector<Checks> checks_;
     std::vector<std::uint64_t> cost_;        // cut_blocks': candidates examined in cells [0, c)
     std::vector<std::uint64_t> block_costs_; // cut_blocks': each thread's share of them
     int threads_ = 0;
