@@ -417,38 +417,45 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     std::fill(orig_.begin() + static_cast<std::ptrdiff_t>(west + n), orig_.end(), 0);
     const int threads = std::max(omp_get_max_threads(), 1);
     prepare_sort(threads, start_);
-    checks_.assign(static_cast<std::size_t>(threads), Checks{n, true});
+    checks_.assign(static_cast<std::size_t>(threads), Checks{});
+    const auto edge_rows = static_cast<std::uint32_t>(west > 0 ? rows_ : 0);
+    const auto east_edge = static_cast<std::uint32_t>(east > 0 ? last_column : cells);
     // One region for the keys and the sort (a region more per step costs a wake-up of the team).
 #pragma omp parallel num_threads(threads)
     {
         const auto t = static_cast<std::size_t>(omp_get_thread_num());
         const auto team = static_cast<std::size_t>(omp_get_num_threads());
         const std::size_t i0 = n * t / team, i1 = n * (t + 1) / team;
-        // The keys apart from the checks, so that the loop vectorises.
+        // The keys, then the checks as flags: both loops vectorise.
         for (std::size_t i = i0; i < i1; ++i)
             key_[i] = key_of(p.x[i], p.y[i]);
-        Checks &c = checks_[t];
+        unsigned edge = 0, other_mass = 0, descending = 0;
         for (std::size_t i = i0; i < i1; ++i) {
-            const std::uint32_t k = key_[i];
-            if (c.misplaced == n && ((west > 0 && k < static_cast<std::uint32_t>(rows_)) ||
-                                     (east > 0 && k >= last_column)))
-                c.misplaced = i; // the first particle in an edge column kept for ghosts
-            c.one_mass = c.one_mass && p.mass[i] == mass;
+            edge |= static_cast<unsigned>(key_[i] < edge_rows) | (key_[i] >= east_edge);
+            other_mass |= static_cast<unsigned>(p.mass[i] != mass);
         }
+        for (std::size_t i = i0; i < std::min(i1, n - 1); ++i)
+            descending |= static_cast<unsigned>(p.id[i] >= p.id[i + 1]);
+        checks_[t] = {edge != 0, other_mass != 0, descending != 0};
         sort_by_key(0, n, west, start_, orig_);
     }
-    std::size_t misplaced = n;
-    bool one_mass = true;
+    Checks all;
     for (const Checks &c : checks_) {
-        misplaced = std::min(misplaced, c.misplaced);
-        one_mass = one_mass && c.one_mass;
+        all.edge = all.edge || c.edge;
+        all.other_mass = all.other_mass || c.other_mass;
+        all.descending = all.descending || c.descending;
     }
-    common_mass_ = one_mass ? mass : 0.0;
-    if (misplaced < n)
-        throw std::logic_error("sorted grid: particle " + std::to_string(p.id[misplaced]) +
-                               " sits in an edge column kept for ghosts");
+    common_mass_ = all.other_mass ? 0.0 : mass;
+    if (all.edge)
+        for (std::size_t i = 0; i < n; ++i)
+            if (key_[i] < edge_rows || key_[i] >= east_edge)
+                throw std::logic_error("sorted grid: particle " + std::to_string(p.id[i]) +
+                                       " sits in an edge column kept for ghosts");
     cut_blocks();
-    sort_cells_by_id(p, 0, cells);
+    // The sort is stable: where the particles are in id order (one rank's, as the setup made
+    // them), so is every cell.
+    if (all.descending)
+        sort_cells_by_id(p, 0, cells);
     for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
         v->resize(n + west + east);
     if constexpr (pair_records)

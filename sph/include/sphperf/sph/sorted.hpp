@@ -286,9 +286,10 @@ private:
     // (thread t's cells at [t x cells, (t + 1) x cells)); the particles of each thread's cells.
     std::vector<std::uint32_t> fill_;
     std::vector<std::size_t> block_sizes_;
-    struct alignas(64) Checks { // update's, per thread: one cache line each
-        std::size_t misplaced;  // the first index in an edge column kept for ghosts, else n
-        bool one_mass;
+    struct alignas(64) Checks {  // update's, per thread: one cache line each
+        bool edge = false;       // a particle in an edge column kept for ghosts
+        bool other_mass = false; // a mass other than the first particle's
+        bool descending = false; // a particle whose id is not below the next one's
     };
     std::vector<Checks> checks_;
     std::vector<std::uint64_t> cost_;        // cut_blocks': candidates examined in cells [0, c)
