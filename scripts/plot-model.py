@@ -526,6 +526,24 @@ def markdown(model, validation, args, out):
                     f"{r['core_latency']['round_trip_s'] * 1e9:.0f} ns "
                     f"({100 * r['core_latency']['far_fraction']:.0f} % far), wall error "
                     f"{100 * r['wall_error']:+.1f} %" for r in val_lat)
+            # The compute term that costs it (calibrate offers it where every point measured it).
+            for c in model.get("compute", []):
+                rt = c.get("core_round_trip_s")
+                if not rt:
+                    continue
+                what = f"{c['grid']} at {c['threads']} threads"
+                if "core_round_trips" in c.get("coefficients", {}):
+                    k = c["coefficients"]["core_round_trips"]
+                    line += (f"; the compute fit of {what} costs {k['value']:.0f} round trips a step "
+                             f"(standard error {k['se']:.0f}) and every prediction puts in the calibration "
+                             f"rank-intervals' mean round trip, {rt['mean'] * 1e9:.0f} ns (what a sum of steps "
+                             f"pays over both modes), where their median is {rt['median'] * 1e9:.0f} ns "
+                             f"({rt['min'] * 1e9:.0f}-{rt['max'] * 1e9:.0f}, {100 * rt['far_fraction']:.0f} % "
+                             f"far): a step at the median costs {k['value'] * (rt['mean'] - rt['median']) * 1e6:.1f} us "
+                             f"less")
+                else:
+                    line += (f"; the compute fit of {what} was offered the round trip as a cost term "
+                             f"and its cross-validation left it out")
             lines.append(line + ".")
         band = s.get("wall_band")
         scatter = model.get("level_scatter", {}).get("per_threads", [])

@@ -35,6 +35,8 @@ double RankWork::value(const std::string &term) const {
         return walls;
     if (term == "descents")
         return descents;
+    if (term == "core_round_trips")
+        return core_round_trip_s;
     throw std::invalid_argument("unknown cost term " + term);
 }
 
@@ -106,12 +108,17 @@ const json *compute_entry(const json &compute, const SphRun &r) {
     return nullptr;
 }
 
+// A rank-interval's mean core round trip (sph's core latency gauge), 0 where not measured.
+double mean_round_trip(const RankStats &rk) {
+    return rk.core_round_trip_samples > 0 ? rk.core_round_trip_s / rk.core_round_trip_samples : 0.0;
+}
+
 // The predicted compute per step of every rank of an interval.
 std::vector<double> fitted_compute(const LinearFit &f, const IntervalStats &iv) {
     std::vector<double> out;
     for (const auto &rk : iv.ranks) {
-        const RankWork w{rk.field_mean,   rk.virtual_,   rk.ghost,
-                         rk.interactions, rk.cell_moves, rk.descents};
+        const RankWork w{rk.field_mean, rk.virtual_, rk.ghost,           rk.interactions,
+                         rk.cell_moves, rk.descents, mean_round_trip(rk)};
         std::vector<double> x;
         for (const auto &t : f.terms)
             x.push_back(w.value(t));
@@ -141,7 +148,8 @@ std::vector<Point> points_of(const SphRun &run, int index) {
             if (r.steps < 1)
                 continue;
             Point p;
-            p.work = {r.field_mean, r.virtual_, r.ghost, r.interactions, r.cell_moves, r.descents};
+            p.work = {r.field_mean, r.virtual_, r.ghost,           r.interactions,
+                      r.cell_moves, r.descents, mean_round_trip(r)};
             p.pairs = r.pairs;
             p.exported = r.exported;
             p.compute_s_per_step = r.compute_s() / r.steps;
@@ -325,6 +333,17 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
         optional.insert(optional.begin() + 2, "walls");
     if (profile == TimeProfile::none)
         optional.push_back("descents");
+    // The inter-core latency where every point measured it (runs of two or more threads): this
+    // VM's vCPUs pass a cache line in about 60 or about 350 ns, switching in spells, and a step
+    // of two threads waits on a number of round trips (barriers, lines the other core wrote)
+    // whatever its work, so a run in the slow mode costs more per step, the smallest runs most
+    // (model/NOTES.md, session 71). Fitted as a cost like the others, the mode no longer
+    // passes for the level of the runs that ran in it.
+    const bool round_trips =
+        !pts.empty() && std::all_of(pts.begin(), pts.end(),
+                                    [](const Point &p) { return p.work.core_round_trip_s > 0; });
+    if (round_trips)
+        optional.push_back("core_round_trips");
     const std::vector<SetupTerm> excluded = setup_terms(pts, runs, optional);
     std::erase_if(optional, [&](const std::string &t) {
         return std::any_of(excluded.begin(), excluded.end(),
@@ -493,6 +512,26 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
                                  "a setup ran in two configurations: it names the setup, not a "
                                  "cost per unit"}});
     j["excluded_terms"] = ex;
+    if (round_trips) {
+        // What a prediction puts in for the term: the mean over the fit's rank-intervals, what
+        // a sum of steps pays over the modes in their calibration shares; the median (the
+        // usual mode) and the spread beside.
+        std::vector<double> rt;
+        for (const auto &p : pts)
+            rt.push_back(p.work.core_round_trip_s);
+        const Summary s = summarize(rt);
+        j["core_round_trip_s"] = {
+            {"mean", s.avg},
+            {"median", s.median},
+            {"min", s.min},
+            {"max", s.max},
+            {"far_fraction", static_cast<double>(std::count_if(
+                                 rt.begin(), rt.end(),
+                                 [](double v) { return v > SphRun::far_core_round_trip_s; })) /
+                                 static_cast<double>(rt.size())},
+            {"points", rt.size()},
+            {"prediction_uses", "mean"}};
+    }
     j["residuals_s"] = residuals;
     j["runs"] = std::set<int>(groups.begin(), groups.end()).size();
     j["fit_window"] = {{"points_used", pts.size()},

@@ -31,6 +31,10 @@ constexpr double blocking_shifts_per_step = 2;
 
 struct Costs {
     LinearFit pairs, exports, interactions, compute, cell_moves;
+    // The core round trip the compute term core_round_trips costs (the calibration's mean;
+    // model.json compute[i].core_round_trip_s), and that object whole for the report.
+    double core_round_trip_s = 0;
+    json core_round_trip;
     std::optional<Disorder> disorder; // list and table: memory order against simulated time
     // List and table: the memory order per column, so each rank's compute per interaction
     // follows its own columns' (predict --rank-disorder columns).
@@ -97,6 +101,19 @@ Costs costs_of(const json &model, const std::string &setup, const std::string &g
             if (m.at("grid") == grid && m.at("threads") == threads) {
                 c.compute = compute_cost_of(m, setup);
                 found = true;
+                if (std::find(c.compute.terms.begin(), c.compute.terms.end(), "core_round_trips") !=
+                    c.compute.terms.end()) {
+                    if (!m.contains("core_round_trip_s") ||
+                        !m.at("core_round_trip_s").contains("mean"))
+                        throw UsageError("model compute " + grid + "/" + std::to_string(threads) +
+                                         " costs core round trips but has no "
+                                         "core_round_trip_s/mean to cost them at");
+                    c.core_round_trip = m.at("core_round_trip_s");
+                    c.core_round_trip_s = c.core_round_trip.at("mean").get<double>();
+                    if (!std::isfinite(c.core_round_trip_s) || c.core_round_trip_s <= 0)
+                        throw UsageError("model compute " + grid + "/" + std::to_string(threads) +
+                                         " core_round_trip_s/mean is not a positive time");
+                }
                 if (m.contains("segment_shares") && !m.at("segment_shares").is_null()) {
                     const auto &g = m.at("segment_shares");
                     c.segment_shares = std::array<double, 3>{
@@ -325,8 +342,13 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
                          : t == "ghost" ? l.ghost
                                         : 1.0);
         const double moves = std::max(0.0, c.cell_moves.predict(xm));
-        const RankWork w{l.field,        l.walls, l.ghost,
-                         s.interactions, moves,   s.interactions * disorder};
+        const RankWork w{l.field,
+                         l.walls,
+                         l.ghost,
+                         s.interactions,
+                         moves,
+                         s.interactions * disorder,
+                         c.core_round_trip_s};
         std::vector<double> x;
         for (const auto &t : c.compute.terms)
             x.push_back(w.value(t));
@@ -639,6 +661,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         {c.jitter.form == JitterForm::sqrt ? "jitter_k_sqrt_s" : "jitter_k_proportional",
          c.jitter.k},
         {"compute_time_profile", c.profile.empty() ? "none" : "froude"},
+        {"core_round_trip_s", c.core_round_trip.is_null() ? json(nullptr) : c.core_round_trip},
         {"rank_disorder", c.column_disorder ? "columns" : "none"},
         {"memory_order_time", c.order_level       ? "simulated"
                               : c.column_disorder ? "froude"

@@ -591,6 +591,89 @@ TEST(ModelCli, TermsThatOnlyNameTheSetupAreNoCandidates) {
     }
 }
 
+// The inter-core latency as a cost (session 71): four 1-rank runs made 2-thread ones, each
+// interval in this VM's near (60 ns) or far (350 ns) mode as the core latency gauge would
+// record it, the compute of every interval 20 ns an interaction plus a planted 2000 round trips
+// a step at its own round trip (the speed gauge at one speed). calibrate offers the term
+// core_round_trips (runs of one thread never carry it), chooses it, recovers both costs, and
+// keeps the mean round trip of the fit's points beside the median, which predict puts in and
+// reports. Without the planted cost the term either stays out or costs next to nothing.
+TEST(ModelCli, CoreRoundTripsAreACostOfTheRunsOfTwoThreads) {
+    const auto &f = fixture();
+    constexpr double planted = 2000, near = 60e-9, far = 350e-9;
+    double sum = 0;
+    int points = 0;
+    auto runs_with = [&](double cost, const std::string &tag) {
+        std::string paths;
+        sum = 0;
+        points = 0;
+        for (int m = 0; m < 4; ++m) {
+            auto j = load(f.run1);
+            j["config"]["threads"] = 2;
+            int k = 0;
+            for (auto &iv : j["intervals"]) {
+                const double rt = (m + k++) % 3 == 0 ? far : near;
+                for (auto &rk : iv["ranks"]) {
+                    rk["core_round_trip_s"] = 5 * rt;
+                    rk["core_round_trip_samples"] = 5;
+                    // One host speed throughout: the gauge would rescale the planted cost.
+                    rk["gauge_cpu_s"] = 40e-6 * rk["gauge_samples"].get<double>();
+                    // A clean compute: 20 ns an interaction, plus the planted round trips.
+                    const double steps = rk["steps"].get<double>();
+                    for (auto &[name, t] : rk["timers"].items())
+                        if (name != "comm_s" && name != "wait_s" && name != "output_s" &&
+                            name != "rebalance_s")
+                            t = 0.0;
+                    rk["timers"]["comp_s"] =
+                        (20e-9 * rk["interactions"].get<double>() + cost * rt) * steps;
+                    sum += rt;
+                    ++points;
+                }
+            }
+            const auto out = f.dir / ("rt_" + tag + std::to_string(m) + ".json");
+            std::ofstream(out) << j.dump();
+            paths += " " + out.string();
+        }
+        return paths;
+    };
+    auto entry = [&](const std::string &runs, const fs::path &out) {
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+                " --runs" + runs + " --out " + out.string());
+        EXPECT_EQ(r.code, 0) << r.err;
+        return load(out)["compute"][0];
+    };
+    const auto model = f.dir / "model_round_trips.json";
+    const auto c = entry(runs_with(planted, "cost"), model);
+    ASSERT_EQ(c["threads"], 2);
+    ASSERT_TRUE(c["coefficients"].contains("core_round_trips")) << c["terms"];
+    const auto &k = c["coefficients"]["core_round_trips"];
+    EXPECT_NEAR(k["value"].get<double>(), planted, 1e-6 * planted);
+    EXPECT_NEAR(c["coefficients"]["interactions"]["value"].get<double>(), 20e-9, 1e-6 * 20e-9);
+    const auto &rt = c["core_round_trip_s"];
+    EXPECT_NEAR(rt["mean"].get<double>(), sum / points, 1e-15);
+    EXPECT_NEAR(rt["median"].get<double>(), near, 1e-15); // two intervals in three are near
+    EXPECT_EQ(rt["prediction_uses"], "mean");
+    const auto pred = f.dir / "pred_round_trips.json";
+    const sphperf::testing::Run p =
+        run(bin("sphmodel") + " predict --model " + model.string() +
+            " --setup dambreak --scale 0.5 --ranks 1 --threads 2 --steps 60 --interval 10 --out " +
+            pred.string());
+    ASSERT_EQ(p.code, 0) << p.err;
+    EXPECT_NEAR(load(pred)["model_source"]["core_round_trip_s"]["mean"].get<double>(), sum / points,
+                1e-15);
+    // No planted cost: out, or a small fraction of it.
+    const auto flat = entry(runs_with(0, "flat"), f.dir / "model_round_trips_flat.json");
+    if (flat["coefficients"].contains("core_round_trips")) {
+        EXPECT_LT(std::abs(flat["coefficients"]["core_round_trips"]["value"].get<double>()),
+                  0.1 * planted);
+    }
+    // The fixture's runs of one thread are never offered it.
+    for (const auto &cand : load(f.model)["compute"][0]["candidates"])
+        for (const auto &t : cand["terms"])
+            EXPECT_NE(t, "core_round_trips");
+}
+
 // A balanced 3-rank run: the model cuts the trace's workload by the app's rule, so its first cut
 // is the run's own; the re-cut by the run's cuts gives every rank's field and wall particles;
 // and validate pairs the run with the balanced prediction, not the equal one.

@@ -52,11 +52,16 @@ inline std::span<const InteractionCost> interaction_costs_of(std::string_view gr
 }
 
 // The cost of one rank's step from its work counts; the terms the fit may use.
-inline constexpr const char *cost_terms[] = {"const", "interactions", "owned",   "walls",
-                                             "ghost", "cell_moves",   "descents"};
+inline constexpr const char *cost_terms[] = {"const",    "interactions",    "owned",
+                                             "walls",    "ghost",           "cell_moves",
+                                             "descents", "core_round_trips"};
 struct RankWork {
     double field = 0, walls = 0, ghost = 0, interactions = 0, cell_moves = 0;
     double descents = 0; // the id sort's work (list and table), see Disorder
+    // The mean round trip of a cache line between the rank's threads 0 and 1 (sph's core
+    // latency gauge), seconds: the term core_round_trips costs it, its coefficient the round
+    // trips a step waits on (0: one thread, or not measured).
+    double core_round_trip_s = 0;
     double value(const std::string &term) const;
 };
 
