@@ -109,7 +109,7 @@ source "$root/scripts/model-set.sh"
 # +28 %), and a calibration run 90 s before that block did not follow its speed (correlation
 # -0.07; model/NOTES.md, session 42). Each one's first run alone is validated too (first-runs/).
 # Since session 71 also the Cell+List and Cell+Table still tanks (4-6 s on the Zen 4 host, about
-# 40 s more job): the list still tank on 2 ranks was a job's largest miss in four of seven jobs
+# 45 s more job: 5:36 -> 6:23 with the other changes of session 71): the list still tank on 2 ranks was a job's largest miss in four of seven jobs
 # of sessions 70-71, at -19.6 to +24.1 %, both ways (**tuned** in the same sense: it followed a
 # miss, and changes what is measured, not the model).
 short_repeats=3
