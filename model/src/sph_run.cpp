@@ -129,24 +129,41 @@ double RankStats::compute_s() const {
     return s;
 }
 
+namespace {
+// The gauge samples of some rank-intervals: their mean per sample weighted by each
+// rank-interval's compute (the factor scales compute), or, where none computed, the plain mean;
+// and the (per sample, compute) pairs for a weighted median.
+struct GaugePool {
+    double weighted = 0, weight = 0, cpu = 0, samples = 0;
+    std::vector<std::pair<double, double>> values;
+    void add(const RankStats &r) {
+        if (r.gauge_samples <= 0)
+            return;
+        const double per_sample = r.gauge_cpu_s / r.gauge_samples;
+        weighted += r.compute_s() * per_sample;
+        weight += r.compute_s();
+        cpu += r.gauge_cpu_s;
+        samples += r.gauge_samples;
+        if (r.compute_s() > 0)
+            values.emplace_back(per_sample, r.compute_s());
+    }
+    bool weighted_by_compute() const { return weight > 0; }
+    // `none`: the value where no rank-interval has a sample.
+    double mean(double none) const {
+        return weight > 0 ? weighted / weight : samples > 0 ? cpu / samples : none;
+    }
+};
+} // namespace
+
 double SphRun::gauge_per_sample_s() const {
     // Weighted by each rank-interval's compute: the factor scales compute, and a rank without
     // field particles (a dam break's far slab, waiting in MPI) reads its own core's speed,
     // 10-70 % off its busy neighbour's (session 50), at no cost to the run.
-    double weighted = 0, weight = 0, cpu = 0, samples = 0;
+    GaugePool pool;
     for (const auto &iv : intervals)
-        for (const auto &r : iv.ranks) {
-            if (r.gauge_samples <= 0)
-                continue;
-            const double per_sample = r.gauge_cpu_s / r.gauge_samples;
-            weighted += r.compute_s() * per_sample;
-            weight += r.compute_s();
-            cpu += r.gauge_cpu_s;
-            samples += r.gauge_samples;
-        }
-    if (weight > 0)
-        return weighted / weight;
-    return samples > 0 ? cpu / samples : 0.0;
+        for (const auto &r : iv.ranks)
+            pool.add(r);
+    return pool.mean(0.0);
 }
 
 std::optional<SphRun::CoreLatency> SphRun::core_latency(double far_s) const {
@@ -203,25 +220,13 @@ std::vector<double> SphRun::interval_gauges_s(int half_window, Pooling pooling) 
     const auto n = static_cast<long>(intervals.size());
     std::vector<double> out;
     for (long k = 0; k < n; ++k) {
-        double weighted = 0, weight = 0, cpu = 0, samples = 0;
-        std::vector<std::pair<double, double>> values;
+        GaugePool pool;
         for (long i = std::max(0L, k - half_window); i <= std::min(n - 1, k + half_window); ++i)
-            for (const auto &r : intervals[static_cast<std::size_t>(i)].ranks) {
-                if (r.gauge_samples <= 0)
-                    continue;
-                const double per_sample = r.gauge_cpu_s / r.gauge_samples;
-                weighted += r.compute_s() * per_sample;
-                weight += r.compute_s();
-                cpu += r.gauge_cpu_s;
-                samples += r.gauge_samples;
-                if (r.compute_s() > 0)
-                    values.emplace_back(per_sample, r.compute_s());
-            }
-        if (weight > 0)
-            out.push_back(pooling == Pooling::median ? weighted_median(std::move(values))
-                                                     : weighted / weight);
-        else
-            out.push_back(samples > 0 ? cpu / samples : whole);
+            for (const auto &r : intervals[static_cast<std::size_t>(i)].ranks)
+                pool.add(r);
+        out.push_back(pool.weighted_by_compute() && pooling == Pooling::median
+                          ? weighted_median(std::move(pool.values))
+                          : pool.mean(whole));
     }
     return out;
 }
