@@ -139,13 +139,13 @@ struct GaugePool {
     void add(const RankStats &r) {
         if (r.gauge_samples <= 0)
             return;
-        const double per_sample = r.gauge_cpu_s / r.gauge_samples;
-        weighted += r.compute_s() * per_sample;
-        weight += r.compute_s();
+        const double per_sample = r.gauge_cpu_s / r.gauge_samples, compute = r.compute_s();
+        weighted += compute * per_sample;
+        weight += compute;
         cpu += r.gauge_cpu_s;
         samples += r.gauge_samples;
-        if (r.compute_s() > 0)
-            values.emplace_back(per_sample, r.compute_s());
+        if (compute > 0)
+            values.emplace_back(per_sample, compute);
     }
     bool weighted_by_compute() const { return weight > 0; }
     // `none`: the value where no rank-interval has a sample.
