@@ -968,6 +968,36 @@ def markdown(model, validation, args, out):
                         "calibration carried")
                      + ", and a balanced run's front rank, whose particles its re-cuts refile "
                      "(which no calibration run does), reads far less than carried.")
+    # The cost term alone (session 73): each busy rank-interval's compute per interaction, the
+    # prediction at the run's own speed, within the cores; its first and last thirds apart show
+    # whether the cost's course through a run (the Froude-time profile, the memory order's carry)
+    # follows the run's.
+    cost = s.get("cost_per_interaction_per_busy_rank_interval")
+    if cost:
+        def third(key):
+            x = s.get(f"cost_per_interaction_per_busy_rank_interval_{key}")
+            return f"{100 * x['median_error']:+.1f} %" if x else "none"
+        by_grid = {}
+        for c in validation["configurations"]:
+            cp = c.get("cost_per_interaction")
+            if cp and cp.get("first_third") and cp.get("last_third"):
+                by_grid.setdefault(c["grid"], []).append(
+                    (cp["first_third"]["median_error"], cp["last_third"]["median_error"]))
+        grids = "; ".join(
+            f"{g} {100 * statistics.median(f for f, _ in e):+.1f} -> "
+            f"{100 * statistics.median(l for _, l in e):+.1f} %"
+            for g, e in sorted(by_grid.items()))
+        lines.append("Cost per interaction of each busy rank-interval within the cores (compute over "
+                     "interactions, the prediction at the run's own speed against the run's; the "
+                     "compute term apart from the work it prices): error median "
+                     f"{100 * cost['median_error']:+.1f} %, |error| median "
+                     f"{100 * cost['median_abs_error']:.1f} %, max {100 * cost['max_abs_error']:.1f} % "
+                     f"over {cost['count']}; first third of the runs {third('first_third')}, last "
+                     f"third {third('last_third')}"
+                     + (f" (per grid, the configurations' median first third -> last third: {grids})"
+                        if grids else "")
+                     + ". A last third above the first: the cost is predicted to rise through the "
+                     "run more than it does (model/NOTES.md, session 73).")
     lines.append("")
     lines.append(f"Roofline: {model['roofline']['verdict']}.")
     with open(out, "w") as f:

@@ -167,6 +167,13 @@ json validate(const json &header, const std::vector<json> &predictions,
     // columns at the same Froude time, stretched onto the target's and re-cut into its slabs)
     // against the run's mean field particles, signed: the re-cut and Froude similarity alone.
     std::vector<double> field_errors;
+    // The cost of each busy rank-interval's work (compute per interaction, predicted over
+    // measured, the prediction at the run's own host speed), signed, within the cores only (a
+    // time-shared rank's timers also hold its core's other rank): the compute term apart from
+    // the work it prices, which the workload and memory-order terms validate. Also its first and
+    // last thirds of each run apart: how the Froude-time profile and the memory order's carry
+    // (predict --memory-order-time) follow the cost as the flow evolves.
+    std::vector<double> cost_errors, cost_errors_first, cost_errors_last;
     // The inline errors by the rule before session 32 (model::GapRule): the untuned comparison.
     std::vector<double> own_kind_errors;
     // The inline errors by the exchange benchmark alone (the inline prediction above the cores
@@ -238,6 +245,20 @@ json validate(const json &header, const std::vector<json> &predictions,
         json series = json::array();
         const auto &piv = p->at("intervals");
         std::vector<double> order_here, field_here; // this configuration's, signed
+        // The host's speed during this run against the calibration's reference (both from the
+        // speed gauge): the prediction at the run's own speed, a diagnostic of how much of the
+        // error was the host's.
+        const double reference = p->contains("speed_gauge_reference_cpu_s") &&
+                                         p->at("speed_gauge_reference_cpu_s").is_number()
+                                     ? p->at("speed_gauge_reference_cpu_s").get<double>()
+                                     : 0.0;
+        const double gauge = m.gauge_per_sample_s();
+        // The model's elasticity of time to the gauge (predictions before session 70: whole).
+        const double elasticity = p->value("speed_gauge_elasticity", 1.0);
+        const double speed =
+            reference > 0 && gauge > 0 ? std::pow(gauge / reference, elasticity) : 0.0;
+        const bool shared = p->at("oversubscribed").get<bool>();
+        std::vector<double> cost_here, cost_first, cost_last; // this configuration's, signed
         if (piv.size() == m.intervals.size())
             for (std::size_t k = 0; k < piv.size(); ++k) {
                 const auto &pk = piv[k].at("ranks");
@@ -253,6 +274,20 @@ json validate(const json &header, const std::vector<json> &predictions,
                     if (busy && pk[q].contains("descents_per_interaction") && mk[q].descents > 0)
                         order_here.push_back(rel(pk[q].at("descents_per_interaction").get<double>(),
                                                  mk[q].descents / mk[q].interactions));
+                    const double p_inter = pk[q].value("interactions", 0.0);
+                    const double m_compute = mk[q].compute_s();
+                    if (busy && !shared && speed > 0 && p_inter > 0 && m_compute > 0 &&
+                        mk[q].steps > 0) {
+                        const double n = static_cast<double>(mk[q].steps);
+                        const double e =
+                            rel(speed * pk[q].at("compute_s").get<double>() / (n * p_inter),
+                                m_compute / (n * mk[q].interactions));
+                        cost_here.push_back(e);
+                        if (3 * k < piv.size())
+                            cost_first.push_back(e);
+                        else if (3 * k >= 2 * piv.size())
+                            cost_last.push_back(e);
+                    }
                 }
                 double mc = 0, ic = 0, hc = 0, pc = 0, probe = 0, probed = 0;
                 sph::ShiftTimes ms{}, is{};
@@ -335,18 +370,6 @@ json validate(const json &header, const std::vector<json> &predictions,
         const double predicted_wall = p->at("wall_s").get<double>();
         const double err = rel(predicted_wall, m.wall_s);
         wall_errors.push_back(std::abs(err));
-        // The host's speed during this run against the calibration's reference (both from the
-        // speed gauge): the prediction at the run's own speed, a diagnostic of how much of the
-        // error was the host's.
-        const double reference = p->contains("speed_gauge_reference_cpu_s") &&
-                                         p->at("speed_gauge_reference_cpu_s").is_number()
-                                     ? p->at("speed_gauge_reference_cpu_s").get<double>()
-                                     : 0.0;
-        const double gauge = m.gauge_per_sample_s();
-        // The model's elasticity of time to the gauge (predictions before session 70: whole).
-        const double elasticity = p->value("speed_gauge_elasticity", 1.0);
-        const double speed =
-            reference > 0 && gauge > 0 ? std::pow(gauge / reference, elasticity) : 0.0;
         json speed_row = nullptr;
         if (speed > 0) {
             const double at_speed = predicted_wall * speed;
@@ -420,6 +443,14 @@ json validate(const json &header, const std::vector<json> &predictions,
         row["workload"] = signed_summary(field_here);
         field_errors.insert(field_errors.end(), field_here.begin(), field_here.end());
         row["memory_order"] = signed_summary(order_here);
+        row["cost_per_interaction"] = signed_summary(cost_here);
+        if (!cost_here.empty()) {
+            row["cost_per_interaction"]["first_third"] = signed_summary(cost_first);
+            row["cost_per_interaction"]["last_third"] = signed_summary(cost_last);
+        }
+        cost_errors.insert(cost_errors.end(), cost_here.begin(), cost_here.end());
+        cost_errors_first.insert(cost_errors_first.end(), cost_first.begin(), cost_first.end());
+        cost_errors_last.insert(cost_errors_last.end(), cost_last.begin(), cost_last.end());
         auto &to = m.config.decomposition == "balanced" ? order_errors_balanced : order_errors;
         to.insert(to.end(), order_here.begin(), order_here.end());
         // Compute per rank: the work's share and its cost per rank (the memory order of the
@@ -475,6 +506,11 @@ json validate(const json &header, const std::vector<json> &predictions,
         {"compute_per_busy_rank_abs_error_time_shared", summary(rank_compute_errors_shared)},
         {"field_per_busy_rank_interval", signed_summary(field_errors)},
         {"descents_per_interaction_per_busy_rank_interval", signed_summary(order_errors)},
+        {"cost_per_interaction_per_busy_rank_interval", signed_summary(cost_errors)},
+        {"cost_per_interaction_per_busy_rank_interval_first_third",
+         signed_summary(cost_errors_first)},
+        {"cost_per_interaction_per_busy_rank_interval_last_third",
+         signed_summary(cost_errors_last)},
         {"descents_per_interaction_per_busy_rank_interval_balanced",
          signed_summary(order_errors_balanced)},
         {"wall_abs_error_speed_corrected", summary(corrected_errors)},
@@ -747,6 +783,21 @@ std::string validation_table(const json &v) {
                      where, 100 * d(sm.at(key).at("median_error")),
                      100 * d(sm.at(key).at("median_abs_error")),
                      100 * d(sm.at(key).at("max_abs_error")), sm.at(key).at("count").get<int>());
+    if (const char *key = "cost_per_interaction_per_busy_rank_interval";
+        sm.contains(key) && !sm.at(key).is_null()) {
+        // The thirds' biases beside the whole's: the cost's course through the runs.
+        auto third = [&](const std::string &k) {
+            return sm.contains(k) && !sm.at(k).is_null() ? 100 * d(sm.at(k).at("median_error"))
+                                                         : std::nan("");
+        };
+        s +=
+            fmt("  cost per interaction of each busy rank-interval within the cores, at the "
+                "run's own speed: error median %+.1f%% (first third of the runs %+.1f%%, last "
+                "%+.1f%%), |error| median %.1f%%, max %.1f%% over %d\n",
+                100 * d(sm.at(key).at("median_error")), third(std::string(key) + "_first_third"),
+                third(std::string(key) + "_last_third"), 100 * d(sm.at(key).at("median_abs_error")),
+                100 * d(sm.at(key).at("max_abs_error")), sm.at(key).at("count").get<int>());
+    }
     for (const auto &u : v.at("unmatched_runs"))
         s += "  not in any prediction: " + u.get<std::string>() + "\n";
     return s;

@@ -1355,6 +1355,69 @@ TEST(Validate, ReportsEachBusyRanksMemoryOrderAndWorkloadApart) {
     EXPECT_TRUE(v["configurations"][0]["memory_order"].is_null());
 }
 
+// The cost of each busy rank-interval's work apart from the work (session 73): compute per
+// interaction, predicted at the run's own host speed over measured, within the cores. Six
+// intervals, the run's host 1.25 times slower than the calibration's (its gauge too): the
+// prediction's cost per interaction 0 and +2 % off in the first two, +10 % in the middle two,
+// +20 and +24 % in the last two (a carry too strong late in the run), and its interactions 10 %
+// off throughout, which must not count.
+// A time-shared run is left out (its timers hold its core's other rank).
+TEST(Validate, ReportsTheCostPerInteractionByThirdsOfTheRun) {
+    auto m = measured_run(1.0);
+    auto p = prediction(1.0);
+    auto &c = p["configurations"][0];
+    c["speed_gauge_reference_cpu_s"] = 40e-6;
+    const nlohmann::json rank = c["intervals"][0]["ranks"][0];
+    const IntervalStats iv = m.intervals[0];
+    m.intervals.clear();
+    c["intervals"] = nlohmann::json::array();
+    for (int k = 0; k < 6; ++k) {
+        IntervalStats mk = iv;
+        auto &rk = mk.ranks[0];
+        rk.steps = 100;
+        rk.interactions = 2000 + 100 * k; // per step
+        rk.timers = {{"comp_s", 0.02 * (1 + 0.1 * k)}, {"comm_s", 0}, {"wait_s", 0}};
+        rk.gauge_cpu_s = 10 * 50e-6; // 1.25 times the reference
+        rk.gauge_samples = 10;
+        m.intervals.push_back(mk);
+        const double measured_cost = rk.compute_s() / (100 * rk.interactions);
+        const double planted = std::array{1.0, 1.02, 1.1, 1.1, 1.2, 1.24}[k];
+        const double inter = 1.1 * rk.interactions;
+        nlohmann::json pr = rank;
+        pr["interactions"] = inter;
+        // At the reference speed: the run's cost over 1.25, times the planted error.
+        pr["compute_s"] = planted * measured_cost / 1.25 * 100 * inter;
+        c["intervals"].push_back({{"ranks", {pr}}});
+    }
+    bool exceeded = false;
+    auto v = validate({}, {p}, {m}, {}, exceeded);
+    const auto &cp = v["configurations"][0]["cost_per_interaction"];
+    ASSERT_FALSE(cp.is_null());
+    EXPECT_EQ(cp["count"], 6);
+    EXPECT_NEAR(cp["first_third"]["median_error"].get<double>(), 0.01, 1e-12);
+    EXPECT_NEAR(cp["last_third"]["median_error"].get<double>(), 0.22, 1e-12);
+    EXPECT_NEAR(cp["median_error"].get<double>(), 0.1, 1e-12);
+    EXPECT_NEAR(cp["max_abs_error"].get<double>(), 0.24, 1e-12);
+    const auto &sm = v["summary"];
+    EXPECT_EQ(sm["cost_per_interaction_per_busy_rank_interval"]["count"], 6);
+    EXPECT_NEAR(
+        sm["cost_per_interaction_per_busy_rank_interval_last_third"]["median_error"].get<double>(),
+        0.22, 1e-12);
+    EXPECT_NE(validation_table(v).find("cost per interaction of each busy rank-interval"),
+              std::string::npos);
+    // Without the gauge there is no own speed to price the run at: nothing reported.
+    for (auto &i : m.intervals)
+        i.ranks[0].gauge_samples = 0;
+    v = validate({}, {p}, {m}, {}, exceeded);
+    EXPECT_TRUE(v["configurations"][0]["cost_per_interaction"].is_null());
+    EXPECT_TRUE(v["summary"]["cost_per_interaction_per_busy_rank_interval"].is_null());
+    for (auto &i : m.intervals)
+        i.ranks[0].gauge_samples = 10;
+    c["oversubscribed"] = true;
+    v = validate({}, {p}, {m}, {}, exceeded);
+    EXPECT_TRUE(v["summary"]["cost_per_interaction_per_busy_rank_interval"].is_null());
+}
+
 // The speed gauge (session 50): a run measured on a host 1.3 times slower, its gauge 1.3 times
 // slower too, is predicted 20 % high at the reference speed and 1.2 x 1.3 - 1 = +56 % high at its
 // own speed. The band stays the prediction's; a run without gauge samples, or a prediction
