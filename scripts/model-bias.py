@@ -16,6 +16,12 @@ about each configuration's mean (the noise the reports share) and the share of t
 of e that the configurations' means carry (the model's share; the rest is noise).
 --own-speed: the errors at each run's own host speed (validate's speed_gauge.wall_error), a
 diagnostic that takes the host's speed during the run out; reports without it are skipped.
+--term: which error (default wall, the wall time): cost (the compute per interaction of the busy
+rank-intervals within the cores, at each run's own speed: the median of validate's
+cost_per_interaction), cost-first-third and cost-last-third (the same over the first and last
+thirds of each run), or cost-trend (ln of the last third's over the first third's: how much more
+the cost is predicted to rise through a run than it does; model/NOTES.md, session 73). The cost
+terms are at each run's own speed already and are not given for time-shared runs.
 --json OUT: the same as a JSON report (schema, this checkout's commit, each input's commit,
 host, build and topology).
 """
@@ -46,9 +52,32 @@ def configuration_key(c):
             int(c["steps"]))
 
 
-def error_of(c, own_speed, path):
+TERMS = ("wall", "cost", "cost-first-third", "cost-last-third", "cost-trend")
+
+
+def cost_error_of(c, term):
+    """ln(predicted / measured) of a configuration's cost per interaction (validate's
+    cost_per_interaction), or None where validate gave none."""
+    cp = c.get("cost_per_interaction")
+    if not isinstance(cp, dict):
+        return None
+    if term == "cost":
+        return math.log1p(cp["median_error"])
+    first, last = cp.get("first_third"), cp.get("last_third")
+    if term == "cost-first-third":
+        return math.log1p(first["median_error"]) if first else None
+    if term == "cost-last-third":
+        return math.log1p(last["median_error"]) if last else None
+    if not first or not last:
+        return None
+    return math.log1p(last["median_error"]) - math.log1p(first["median_error"])
+
+
+def error_of(c, own_speed, path, term="wall"):
     """ln(predicted / measured) of one configuration, or None where --own-speed has no gauge."""
     try:
+        if term != "wall":
+            return cost_error_of(c, term)
         if own_speed:
             sg = c.get("speed_gauge")
             if not isinstance(sg, dict) or sg.get("wall_error") is None:
@@ -56,10 +85,10 @@ def error_of(c, own_speed, path):
             return math.log1p(sg["wall_error"])
         return math.log1p(c["wall_error"])
     except (KeyError, TypeError, ValueError) as e:
-        raise InputError(f"{path}: a configuration without a usable wall error ({e})")
+        raise InputError(f"{path}: a configuration without a usable {term} error ({e})")
 
 
-def summarise(reports, own_speed, min_jobs):
+def summarise(reports, own_speed, min_jobs, term="wall"):
     errors = {}
     for path, doc in reports:
         for c in doc["configurations"]:
@@ -67,7 +96,7 @@ def summarise(reports, own_speed, min_jobs):
                 key = configuration_key(c)
             except KeyError as e:
                 raise InputError(f"{path}: a configuration without {e}")
-            e = error_of(c, own_speed, path)
+            e = error_of(c, own_speed, path, term)
             if e is not None:
                 errors.setdefault(key, []).append(e)
     rows = []
@@ -88,8 +117,8 @@ def summarise(reports, own_speed, min_jobs):
         total_ss += sum(e * e for e in es)
         total_n += n
     if within_dof < 1:
-        raise InputError("no configuration appears in two reports: nothing to separate bias "
-                         "from noise")
+        raise InputError(f"no configuration has a {term} error in two reports: nothing to "
+                         "separate bias from noise")
     return {"configurations": rows,
             "noise_sd_log": math.sqrt(within_ss / within_dof),
             "bias_share_of_mean_square": 1 - within_ss / total_ss if total_ss > 0 else 0.0,
@@ -100,9 +129,15 @@ def pct(x):
     return "-" if x is None else f"{100 * x:+.1f} %"
 
 
-def print_table(summary, reports, own_speed, min_jobs):
-    what = "at each run's own host speed" if own_speed else "as predicted"
-    print(f"Wall-time error {what} over {len(reports)} validation reports "
+def print_table(summary, reports, own_speed, min_jobs, term="wall"):
+    what = {"wall": "Wall-time error " + ("at each run's own host speed" if own_speed
+                                          else "as predicted"),
+            "cost": "Cost per interaction error (busy rank-intervals within the cores, at each "
+                    "run's own speed)",
+            "cost-first-third": "Cost per interaction error over each run's first third",
+            "cost-last-third": "Cost per interaction error over each run's last third",
+            "cost-trend": "Cost per interaction error, last third over first third of each run"}[term]
+    print(f"{what} over {len(reports)} validation reports "
           f"(mean of ln(predicted / measured), shown as a percentage; systematic: |t| >= 2 over "
           f">= {min_jobs} reports)")
     print()
@@ -128,6 +163,9 @@ def main():
     ap.add_argument("reports", nargs="+", help="sphmodel validation reports (validation.json)")
     ap.add_argument("--own-speed", action="store_true",
                     help="the errors at each run's own host speed (default: as predicted)")
+    ap.add_argument("--term", default="wall",
+                    help="which error: wall (default), cost, cost-first-third, cost-last-third or "
+                         "cost-trend (see above)")
     ap.add_argument("--min-jobs", type=int, default=3,
                     help="reports a configuration needs before it can be marked systematic (default 3)")
     ap.add_argument("--json", metavar="OUT", help="also write the summary as JSON to OUT")
@@ -135,19 +173,25 @@ def main():
     try:
         if args.min_jobs < 2:
             raise InputError(f"--min-jobs {args.min_jobs}: expected an integer of 2 or more")
+        if args.term not in TERMS:
+            raise InputError(f"--term {args.term!r}: expected one of {', '.join(TERMS)}")
+        if args.own_speed and args.term != "wall":
+            raise InputError(f"--own-speed with --term {args.term}: the cost terms are at each "
+                             "run's own speed already; --own-speed applies to --term wall")
         if len(args.reports) < 2:
             raise InputError(f"{len(args.reports)} validation report given: expected 2 or more "
                              f"(one job cannot tell bias from noise)")
         reports = [(p, load_validation(p)) for p in args.reports]
-        summary = summarise(reports, args.own_speed, args.min_jobs)
+        summary = summarise(reports, args.own_speed, args.min_jobs, args.term)
     except InputError as e:
         print(f"model-bias.py: {e}", file=sys.stderr)
         sys.exit(2)
-    print_table(summary, reports, args.own_speed, args.min_jobs)
+    print_table(summary, reports, args.own_speed, args.min_jobs, args.term)
     if args.json:
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         doc = {"schema": SCHEMA, "benchmark": "sphperf-model-bias", "git_commit": git_commit(root),
-               "errors": "own_speed" if args.own_speed else "as_predicted", "min_jobs": args.min_jobs,
+               "errors": "own_speed" if args.own_speed else "as_predicted", "term": args.term,
+               "min_jobs": args.min_jobs,
                "inputs": [{"path": p, "git_commit": d.get("git_commit"), "host": d.get("host"),
                            "timestamp": d.get("timestamp"), "build": d.get("build"),
                            "topology": d.get("topology")} for p, d in reports]}

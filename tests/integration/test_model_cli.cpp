@@ -1398,11 +1398,17 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
         };
         const double biased = std::exp(std::log(1.15) + noise[job]) - 1;
         const double unbiased = std::exp((job % 2 ? -0.1 : 0.1) + noise[job]) - 1;
-        const nlohmann::json doc{
-            {"benchmark", "sphmodel-validation"},
-            {"schema", 1},
-            {"git_commit", std::to_string(job)},
-            {"configurations", {config("sorted", 2, biased), config("table", 1, unbiased)}}};
+        // --term cost-trend: the sorted run's cost per interaction predicted 2 % high in its
+        // first third and 10 % high (times the noise) in its last: a trend of ln(1.1 / 1.02).
+        auto sorted = config("sorted", 2, biased);
+        const double last = std::exp(std::log(1.1) + noise[job] / 4) - 1;
+        sorted["cost_per_interaction"] = {{"median_error", 0.06},
+                                          {"first_third", {{"median_error", 0.02}}},
+                                          {"last_third", {{"median_error", last}}}};
+        const nlohmann::json doc{{"benchmark", "sphmodel-validation"},
+                                 {"schema", 1},
+                                 {"git_commit", std::to_string(job)},
+                                 {"configurations", {sorted, config("table", 1, unbiased)}}};
         const fs::path p = dir / ("validation_" + std::to_string(job) + ".json");
         std::ofstream(p) << doc.dump();
         // Appended, not " " + p.string(): GCC 12 warns -Wrestrict on a literal plus a temporary
@@ -1428,6 +1434,15 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
     EXPECT_GT(bias["noise_sd_log"].get<double>(), 0.04);
     EXPECT_EQ(bias["schema"], 1);
     EXPECT_NE(r.out.find("**systematic**"), std::string::npos);
+    // The cost term's trend: only the configuration that carries it, at the planted ratio.
+    const sphperf::testing::Run rt =
+        run(script + reports + " --term cost-trend --json " + out.string());
+    ASSERT_EQ(rt.code, 0) << rt.err;
+    const auto trend = load(out);
+    ASSERT_EQ(trend["configurations"].size(), 1u);
+    EXPECT_EQ(trend["term"], "cost-trend");
+    EXPECT_NEAR(trend["configurations"][0]["mean_error"].get<double>(), 1.1 / 1.02 - 1, 0.005);
+    EXPECT_TRUE(trend["configurations"][0]["systematic"].get<bool>());
 
     std::ofstream(dir / "malformed.json") << "{\"benchmark\": ";
     const std::string first = (dir / "validation_0.json").string();
@@ -1437,7 +1452,9 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
          {first + " " + (dir / "nope.json").string(), "nope.json"},
          {first + " " + (dir / "malformed.json").string(), "is not JSON"},
          {first + " " + reference_vm + "model.json", "not a sphmodel validation report"},
-         {reports + " --min-jobs 1", "--min-jobs 1"}});
+         {reports + " --min-jobs 1", "--min-jobs 1"},
+         {reports + " --term cost --own-speed", "--own-speed with --term cost"},
+         {reports + " --term costs", "--term 'costs': expected one of wall, cost"}});
     fs::remove_all(dir);
 }
 
