@@ -488,6 +488,10 @@ beside model_and_validate "$out/one-order-per-run" "$rule" froude relative repla
 # (sessions 56-58) instead of to the whole water's at its simulated time (session 59).
 beside model_and_validate "$out/froude-order" "$rule" froude relative replay \
     "--memory-order-time froude"
+# The cost following all of the order's carry to simulated time (sessions 59-72) instead of half
+# of it (session 73: the cost's course through the runs, model/NOTES.md).
+beside model_and_validate "$out/full-carry" "$rule" froude relative replay \
+    "--memory-order-carry 1"
 beside model_and_validate "$out/no-profile" "$rule" none absolute
 beside model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute
 # The term rule of sessions 13-63: the smallest set within one standard error of the best score.

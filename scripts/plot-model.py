@@ -578,6 +578,13 @@ def markdown(model, validation, args, out):
             return (f"median {100 * o['median']:.1f} %, max {100 * o['max']:.1f} % over {o['count']} "
                     f"configurations")
 
+        def carry_share():
+            """The cost's share of the memory order's carry the scale-1 table prediction used."""
+            path = os.path.join(args.dir, "prediction_dambreak_s1_table.json")
+            if not os.path.exists(path):
+                return None
+            return (load(path).get("model_source") or {}).get("memory_order_carry")
+
         # Each tuned choice beside the model before it, on the same runs: (in use, folder, line).
         choices = [
             ({c.get("term_selection", "pooled-one-percent") for c in model["compute"]} == {"levelled-best"},
@@ -733,6 +740,20 @@ def markdown(model, validation, args, out):
              "+1.2 % with it; both targets met in 14 of the 22 jobs against 12): **tuned**. With "
              "the order at Froude time (sessions 56-58) on the same runs: {o} "
              "(froude-order/validation.json)."),
+            (carry_share() not in (None, 1.0),
+             "full-carry",
+             "The cost of that order following half of its carry from Froude time to simulated "
+             "time (predict --memory-order-carry 0.5; the order itself carried whole), since "
+             "session 73: validate's cost per interaction over each run's last third against "
+             "its first put the cost's rise through the scale-1 table dam breaks 5-6 % above the "
+             "runs' with all of it on the Zen 4 host (10 jobs) and -1 to +5 % on the earlier "
+             "hosts (7 stored jobs), 0-3 % below and 0-7 % below at Froude time: the share that "
+             "zeroes it is about 0.3 on the one and 0.6-1 on the others, and no calibration run "
+             "measures it (model/NOTES.md, session 73). Half is the share least wrong on either; "
+             "decided after replaying those 17 jobs (mean of the jobs' wall medians 8.05 -> 7.64 "
+             "% and 4.14 -> 4.23 %, at each run's own speed 5.90 -> 5.56 and 4.18 -> 3.56 %): "
+             "**tuned**. With all of the carry (sessions 59-72) on the same runs: {o} "
+             "(full-carry/validation.json)."),
             (any("_s0.35_sorted_t2_" in r["path"] for r in model["calibration_runs"]),
              "two-thread-one-scale",
              "Cell+Sorted at 2 threads calibrated on its dam break at two scales (0.35 and 0.7) and "

@@ -607,6 +607,9 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         throw UsageError("--rank-disorder '" + req.rank_disorder + "': expected columns or none");
     if (req.rank_disorder == "none")
         c.column_disorder.reset();
+    if (!(req.memory_order_carry >= 0 && req.memory_order_carry <= 1))
+        throw UsageError("--memory-order-carry " + std::to_string(req.memory_order_carry) +
+                         ": expected a share from 0 to 1");
     if (req.memory_order_time != "simulated" && req.memory_order_time != "froude")
         throw UsageError("--memory-order-time '" + req.memory_order_time +
                          "': expected simulated or froude");
@@ -666,6 +669,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         {"memory_order_time", c.order_level       ? "simulated"
                               : c.column_disorder ? "froude"
                                                   : "none"}};
+    if (c.order_level)
+        out["model_source"]["memory_order_carry"] = req.memory_order_carry;
     if (c.column_disorder)
         out["model_source"]["rank_disorder_source"] = c.column_disorder->source;
     out["fluid_particles"] = probe.fluid_particles;
@@ -768,11 +773,18 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                     // keeps its order (0.12 descents per interaction at 0.15 s against 0.31),
                     // which the Froude-time record matches better (validate's memory-order
                     // term: median +0.5 %).
-                    if (slabs && c.order_level && !balanced)
-                        slabs =
-                            ColumnDisorder::at_whole_order(*slabs, c.order_level->at(t, c.delta));
+                    // The order the run counts is carried whole (validate's memory-order
+                    // term); its cost follows a share of that carry (--memory-order-carry,
+                    // validate's cost term: model/NOTES.md, session 73).
+                    auto priced = slabs;
+                    if (slabs && c.order_level && !balanced) {
+                        const double whole = c.order_level->at(t, c.delta);
+                        priced = ColumnDisorder::at_whole_order(
+                            *slabs, slabs->all + req.memory_order_carry * (whole - slabs->all));
+                        slabs = ColumnDisorder::at_whole_order(*slabs, whole);
+                    }
                     const std::vector<double> order =
-                        slabs ? c.column_disorder->factors(*slabs) : std::vector<double>{};
+                        priced ? c.column_disorder->factors(*priced) : std::vector<double>{};
                     const auto ranks =
                         predict_step(recut(cols, tgt.wall_columns, cuts), density_at(trace, ts), c,
                                      req.threads, req.nodes, t, order, step_s);

@@ -199,6 +199,13 @@ int run(int argc, char **argv) {
                     "Froude time (froude: the model of sessions 56-58)")
         ->capture_default_str()
         ->check(cli::IsMember({"simulated", "froude"}));
+    pre->add_option("--memory-order-carry", q.memory_order_carry,
+                    "With --memory-order-time simulated: the share of the order's carry from "
+                    "Froude time to simulated time that its cost follows, 0 (none: the cost as "
+                    "froude) to 1 (all, sessions 59-72); the order itself is carried whole "
+                    "(default 0.5: tuned, model/NOTES.md session 73)")
+        ->capture_default_str()
+        ->check(cli::Range(0.0, 1.0));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

@@ -773,7 +773,8 @@ TEST(ModelCli, CostAwareCutsUseTheModelsWeights) {
 // --memory-order-time simulated (the default) Cell+Table's slabs are carried to the whole
 // water's order at the target's simulated time (the model's disorder record): a record that
 // reads the planted columns' order leaves the factors as at Froude time, one twice as
-// disordered raises every rank's, and a record shorter than the prediction is refused.
+// disordered raises every rank's (by half as much with the cost's default share of the carry,
+// --memory-order-carry), and a record shorter than the prediction is refused.
 TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
     const auto &f = fixture();
     auto model = load(f.model);
@@ -867,13 +868,50 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
     ASSERT_EQ(fs_same.size(), fc.size());
     for (std::size_t r = 0; r < fc.size(); ++r)
         EXPECT_NEAR(fs_same[r], fc[r], 0.01 * fc[r]) << r;
-    const auto [twice, twice_out] =
-        predict(with_record(2.0, times.size(), "twice"), "", "simulated_twice");
+    const auto [twice, twice_out] = predict(with_record(2.0, times.size(), "twice"),
+                                            " --memory-order-carry 1", "simulated_twice");
     ASSERT_EQ(twice.code, 0) << twice.err;
     const auto ft = factors(load(twice_out));
     ASSERT_EQ(ft.size(), fc.size());
     for (std::size_t r = 0; r < fc.size(); ++r)
         EXPECT_GT(ft[r], fc[r] * 1.05) << r;
+    // The cost's share of the carry (session 73; half by default): none prices the order of
+    // Froude time, half lies between; the order the run will count is carried whole either
+    // way; a share outside 0-1 is refused.
+    const auto twice_model = with_record(2.0, times.size(), "twice");
+    const auto [zero, zero_out] = predict(twice_model, " --memory-order-carry 0", "carry_zero");
+    ASSERT_EQ(zero.code, 0) << zero.err;
+    const auto pz = load(zero_out);
+    const auto fz = factors(pz);
+    ASSERT_EQ(fz.size(), fc.size());
+    for (std::size_t r = 0; r < fc.size(); ++r)
+        EXPECT_NEAR(fz[r], fc[r], 1e-12) << r;
+    const auto [half, half_out] = predict(twice_model, "", "carry_half");
+    ASSERT_EQ(half.code, 0) << half.err;
+    const auto ph = load(half_out);
+    EXPECT_EQ(ph["model_source"]["memory_order_carry"], 0.5);
+    const auto fh = factors(ph);
+    ASSERT_EQ(fh.size(), fc.size());
+    for (std::size_t r = 0; r < fc.size(); ++r) {
+        EXPECT_GT(fh[r], fc[r] * 1.02) << r;
+        EXPECT_LT(fh[r], ft[r] / 1.02) << r;
+    }
+    auto descents = [](const nlohmann::json &p) {
+        std::vector<double> out;
+        for (const auto &r : p["configurations"][0]["intervals"].back()["ranks"])
+            if (r.contains("descents_per_interaction"))
+                out.push_back(r["descents_per_interaction"].get<double>());
+        return out;
+    };
+    const auto dz = descents(pz), dt = descents(load(twice_out));
+    ASSERT_EQ(dz.size(), fc.size());
+    ASSERT_EQ(dz.size(), dt.size());
+    for (std::size_t r = 0; r < dz.size(); ++r)
+        EXPECT_NEAR(dz[r], dt[r], 1e-12 * dt[r]) << r;
+    const auto [over, over_out] = predict(twice_model, " --memory-order-carry 1.5", "carry_over");
+    EXPECT_EQ(over.code, 2);
+    EXPECT_NE(over.err.find("1.5"), std::string::npos) << over.err;
+    EXPECT_FALSE(fs::exists(over_out));
     // A record that ends before the prediction: refused, naming the time and the way out.
     const auto short_record = with_record(1.0, times.size() / 2, "short");
     const auto [cut, cut_out] = predict(short_record, "", "short");

@@ -239,6 +239,12 @@ struct PredictRequest {
     // target's simulated time (ColumnDisorder::at_whole_order, session 59); froude: at its
     // Froude time with the columns (sessions 56-58).
     std::string memory_order_time = "simulated";
+    // With simulated: the share of that carry the cost follows, 0 (the cost at the order of
+    // Froude time) to 1 (all of it, sessions 59-72); the order itself is carried whole. Over
+    // seventeen replayed jobs the cost's course through the runs put the share near 0.3 on the
+    // Zen 4 host and 0.6-1 on the earlier ones, and no calibration run measures it: half, the
+    // share least wrong on either (model/NOTES.md, session 73; tuned).
+    double memory_order_carry = 0.5;
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);
