@@ -470,6 +470,9 @@ CAL_EXTRA="--speed-gauge-elasticity fitted" beside model_and_validate "$out/gaug
 CAL_EXTRA="--jitter-form sqrt" beside model_and_validate "$out/sqrt-jitter" "$rule" froude
 # The cost term walls offered to the term selection again (sessions 1-50).
 CAL_EXTRA="--walls-term" beside model_and_validate "$out/walls-term" "$rule" froude
+# Any positive cost per item (sessions 1-72) instead of refusing a set that prices one ghost,
+# cell move, particle or wall above a fluid particle's interactions (session 73).
+CAL_EXTRA="--item-cost-bound none" beside model_and_validate "$out/unbounded-items" "$rule" froude
 # The Froude-time profile as the moving ratio of sessions 16-41 instead of the robust quadratic.
 beside model_and_validate "$out/windowed-profile" "$rule" froude-windowed
 beside model_and_validate "$out/absolute-weights" "$rule" froude absolute

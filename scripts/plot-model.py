@@ -740,6 +740,21 @@ def markdown(model, validation, args, out):
              "+1.2 % with it; both targets met in 14 of the 22 jobs against 12): **tuned**. With "
              "the order at Froude time (sessions 56-58) on the same runs: {o} "
              "(froude-order/validation.json)."),
+            (any(c.get("item_cost_bound") == "particle" for c in model["compute"]),
+             "unbounded-items",
+             "Term sets that price one item (a particle, a ghost, a cell move, a wall) above a fluid "
+             "particle's interactions refused (calibrate --item-cost-bound particle), since session "
+             "73: a ghost or a cell move is part of a particle's work, and in Cell+List and "
+             "Cell+Table runs the cell moves are the ghosts, absent from the 1-rank calibration "
+             "runs; the second main job of session 73 priced them at 5.8 us each (its cross-"
+             "validation 1.3 % better than interactions alone, the standard error 24 %) and put "
+             "the 3-4 rank table dam breaks 29-62 % high, as session 33's 11 us had. Added after "
+             "that validation: **tuned** (over 18 replayed jobs it changed two fits, both for the "
+             "better). In this calibration it refused "
+             + str(sum(bool(cand.get("item_above_a_particle")) for c in model["compute"]
+                       for cand in c.get("candidates", [])))
+             + " term set(s). Without it (any positive cost, sessions 1-72) on the same runs: {o} "
+             "(unbounded-items/validation.json)."),
             (carry_share() not in (None, 1.0),
              "full-carry",
              "The cost of that order following half of its carry from Froude time to simulated "

@@ -13,7 +13,8 @@
 # (the reports' wall_s, without the launcher's start-up). Nothing is timed: runs beside anything.
 # Environment: CAL_EXTRA, more calibrate options; PREDICT_EXTRA, more predict options (a job
 # stored before session 59, whose list and table memory-order record ends at 0.11 s, predicts
-# the scale-1 dam breaks with PREDICT_EXTRA="--memory-order-time froude").
+# the scale-1 dam breaks with PREDICT_EXTRA="--memory-order-time froude"); REPLAY_RULE, the
+# compute-cost term rule (calibrate --term-selection; default the main job's, levelled-best).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build="${SPHPERF_BUILD_DIR:-$root/build}"
@@ -75,7 +76,7 @@ val_reports=("$runs"/val_*.json)
     "after --include '$include' and --exclude '$exclude'"
 # PREDICT_EXTRA: more predict options (e.g. --memory-order-time froude for a job whose list
 # and table records end before the validation's simulated time, sessions 55-58).
-model_and_validate "$out" levelled-best froude relative replay "${PREDICT_EXTRA:-}"
+model_and_validate "$out" "${REPLAY_RULE:-levelled-best}" froude relative replay "${PREDICT_EXTRA:-}"
 /usr/bin/python3 - "$out/validation.json" "${#cal_reports[@]}" "${cal_reports[@]}" \
     -- "${val_reports[@]}" <<'PY'
 import json, sys

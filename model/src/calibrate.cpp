@@ -317,7 +317,7 @@ std::string configuration_key(const RunConfig &c) {
 
 json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &runs,
                  TermSelection rule, TimeProfile profile, FitWeights weights,
-                 RunLevelRule level_rule, bool walls_term) {
+                 RunLevelRule level_rule, bool walls_term, bool bound_item_costs) {
     const std::vector<Point> pts =
         profile != TimeProfile::none ? common_reach(all_pts, runs) : all_pts;
     // With a Froude-time profile the flow's evolution is the profile's: no term that grows with
@@ -384,6 +384,13 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
         }
         return weighted ? divided_rows(std::move(X), unit) : X;
     };
+    // A fluid particle's interactions per step (the median over the rank-intervals holding
+    // fluid): what one item may cost at most, in units of the interactions' coefficient.
+    std::vector<double> per_fluid;
+    for (const auto &p : pts)
+        if (p.work.field > 0)
+            per_fluid.push_back(p.work.interactions / p.work.field);
+    const double interactions_per_fluid = per_fluid.empty() ? 0.0 : median(per_fluid);
     for (unsigned mask = 0; mask < (1u << optional.size()); ++mask) {
         std::vector<std::string> terms{"interactions"};
         for (std::size_t k = 0; k < optional.size(); ++k)
@@ -403,8 +410,17 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
             // Every term is a cost: a set that fits one negative (one cost traded against
             // another, as ghosts against cell moves in two runs) is not a physical model.
             const LinearFit all = fit_levelled(X, yw, terms, setups).fit;
+            // One item's cost against a fluid particle's interactions (terms[0]).
+            const double particle = all.coef[0] * interactions_per_fluid;
+            bool above = false;
+            for (std::size_t k = 1; k < terms.size(); ++k)
+                if (terms[k] == "owned" || terms[k] == "ghost" || terms[k] == "cell_moves" ||
+                    terms[k] == "walls")
+                    above = above || all.coef[k] > particle;
             if (std::any_of(all.coef.begin(), all.coef.end(), [](double v) { return v < 0; }))
                 c["negative_cost"] = true;
+            else if (bound_item_costs && above)
+                c["item_above_a_particle"] = true;
             else
                 ok.push_back({terms, score, cv_run});
             candidates.push_back(c);
@@ -503,6 +519,8 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
                           : rule == TermSelection::levelled_best ? "levelled-best"
                                                                  : "pooled-one-percent";
     j["candidates"] = candidates;
+    j["item_cost_bound"] = bound_item_costs ? "particle" : "none";
+    j["interactions_per_fluid_particle"] = interactions_per_fluid;
     json ex = json::array();
     for (const auto &e : excluded)
         ex.push_back({{"term", e.term},
@@ -1524,7 +1542,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     json compute = json::array();
     for (const auto &[key, pts] : by_grid_threads) {
         json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile, opt.fit_weights,
-                             opt.run_level, opt.walls_term);
+                             opt.run_level, opt.walls_term, opt.bound_item_costs);
         c["grid"] = key.first;
         c["threads"] = key.second;
         std::vector<const SphRun *> mine;

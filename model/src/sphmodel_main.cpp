@@ -27,6 +27,7 @@ struct Options {
     std::string gauge_elasticity = "one";
     bool walls_term = false;
     std::string jitter_form = "auto";
+    std::string item_cost_bound = "particle";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -105,6 +106,12 @@ int run(int argc, char **argv) {
                   "Also offer the compute-cost term walls (every wall particle of a rank), as "
                   "sessions 1-50 did (a rank's dry walls cost nothing measurable: model/NOTES.md, "
                   "session 51)");
+    cal->add_option("--item-cost-bound", o.item_cost_bound,
+                    "particle (a term set that prices one owned or ghost particle, cell move or "
+                    "wall above a fluid particle's interactions is refused, since session 73) "
+                    "or none (any positive cost, sessions 1-72)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"particle", "none"}));
     cal->add_option("--jitter-form", o.jitter_form,
                     "How a rank's step-to-step compute noise grows with its step: auto (the "
                     "form whose leave-one-run-out prediction of the calibration runs' waits is "
@@ -250,7 +257,8 @@ int run(int argc, char **argv) {
              o.walls_term,
              o.jitter_form == "auto"   ? std::nullopt
              : o.jitter_form == "sqrt" ? std::optional<JitterForm>(JitterForm::sqrt)
-                                       : std::optional<JitterForm>(JitterForm::proportional)});
+                                       : std::optional<JitterForm>(JitterForm::proportional),
+             o.item_cost_bound == "particle"});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

@@ -586,6 +586,13 @@ std::string calibration_table(const json &m) {
                      "setup): %s\n",
                      names.c_str());
         }
+        std::size_t above = 0;
+        for (const auto &cand : c.at("candidates"))
+            above += cand.value("item_above_a_particle", false) ? 1 : 0;
+        if (above > 0)
+            s += fmt("    %zu term set(s) refused: they price one particle, ghost, cell move or "
+                     "wall above a fluid particle's interactions (calibrate --item-cost-bound)\n",
+                     above);
     }
     if (m.contains("level_scatter"))
         for (const auto &e : m.at("level_scatter").at("per_threads"))

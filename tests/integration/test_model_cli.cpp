@@ -591,6 +591,79 @@ TEST(ModelCli, TermsThatOnlyNameTheSetupAreNoCandidates) {
     }
 }
 
+// An item priced above a particle's work (session 73): the fixture's 1- and 2-rank dam breaks
+// (the 2-rank one twice) with a clean compute of 20 ns an interaction plus a planted cost per ghost
+// particle. At 8 us a ghost (above a fluid particle's interactions, about 1 us here: session 73's
+// cell moves, which are the ghosts in Cell+Table, were priced at 5.8 us) every set with ghost is
+// refused, and the model names why; with --item-cost-bound none the set is chosen and recovers the
+// cost. At 0.2 us a ghost the set stands either way.
+TEST(ModelCli, AnItemPricedAboveAParticleIsRefused) {
+    const auto &f = fixture();
+    auto runs_with = [&](double per_ghost, const std::string &tag) {
+        std::string paths;
+        int k = 0;
+        // Two rounds of the 2-rank run, so that a ghost's cost is held out and fitted again.
+        for (const auto &from : {f.run1, f.run2, f.run2}) {
+            auto j = load(from);
+            for (auto &iv : j["intervals"])
+                for (auto &rk : iv["ranks"]) {
+                    rk["gauge_cpu_s"] = 40e-6 * rk["gauge_samples"].get<double>();
+                    const double steps = rk["steps"].get<double>();
+                    for (auto &[name, t] : rk["timers"].items())
+                        if (name != "comm_s" && name != "wait_s" && name != "output_s" &&
+                            name != "rebalance_s")
+                            t = 0.0;
+                    rk["timers"]["comp_s"] = (20e-9 * rk["interactions"].get<double>() +
+                                              per_ghost * rk["ghost"].get<double>()) *
+                                             steps;
+                }
+            const auto out = f.dir / ("item_" + tag + "_" + std::to_string(k++) + ".json");
+            std::ofstream(out) << j.dump();
+            paths += " " + out.string();
+        }
+        return paths;
+    };
+    std::string said; // the last calibration's stdout
+    auto entry = [&](const std::string &runs, const std::string &extra, const std::string &tag) {
+        const auto out = f.dir / ("model_item_" + tag + ".json");
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+                " --runs" + runs + extra + " --out " + out.string());
+        EXPECT_EQ(r.code, 0) << r.err;
+        said = r.out;
+        return load(out)["compute"][0];
+    };
+    auto has = [](const nlohmann::json &c, const char *term) {
+        return std::find(c["terms"].begin(), c["terms"].end(), term) != c["terms"].end();
+    };
+    const std::string dear = runs_with(8e-6, "dear"), cheap = runs_with(0.2e-6, "cheap");
+    const auto bounded = entry(dear, "", "dear");
+    EXPECT_FALSE(has(bounded, "ghost")) << bounded["terms"];
+    int refused = 0;
+    for (const auto &cand : bounded["candidates"]) {
+        const bool with_ghost =
+            std::find(cand["terms"].begin(), cand["terms"].end(), "ghost") != cand["terms"].end();
+        const bool above = cand.value("item_above_a_particle", false);
+        if (with_ghost && !cand.value("negative_cost", false) && !cand.contains("rank_deficient"))
+            EXPECT_TRUE(above) << cand["terms"];
+        refused += above ? 1 : 0;
+    }
+    EXPECT_GT(refused, 0);
+    EXPECT_NE(said.find("refused: they price one particle, ghost"), std::string::npos) << said;
+    const auto unbounded = entry(dear, " --item-cost-bound none", "dear_none");
+    ASSERT_TRUE(has(unbounded, "ghost")) << unbounded["terms"];
+    EXPECT_NEAR(unbounded["coefficients"]["ghost"]["value"].get<double>(), 8e-6, 1e-3 * 8e-6);
+    const auto plausible = entry(cheap, "", "cheap");
+    ASSERT_TRUE(has(plausible, "ghost")) << plausible["terms"];
+    EXPECT_NEAR(plausible["coefficients"]["ghost"]["value"].get<double>(), 0.2e-6, 1e-3 * 0.2e-6);
+    const sphperf::testing::Run bad =
+        run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+            " --runs" + dear + " --item-cost-bound loose --out " + (f.dir / "never.json").string());
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_NE(bad.err.find("loose"), std::string::npos) << bad.err;
+    EXPECT_FALSE(fs::exists(f.dir / "never.json"));
+}
+
 // The inter-core latency as a cost (session 71): four 1-rank runs made 2-thread ones, each
 // interval in this VM's near (60 ns) or far (350 ns) mode as the core latency gauge would
 // record it, the compute of every interval 20 ns an interaction plus a planted 2000 round trips

@@ -137,6 +137,12 @@ struct CalibrateOptions {
     // The jitter's form (jitter.hpp): chosen by leave-one-run-out cross-validation of the
     // calibration runs' waits (nullopt, the default since session 61), or this one.
     std::optional<JitterForm> jitter_form;
+    // Refuse a term set that prices one item (an owned or ghost particle, a cell move, a wall)
+    // above a fluid particle's interactions: a ghost or a move is part of a particle's work. In
+    // Cell+List and Cell+Table runs cell moves are the ghosts (re-filed every step), absent
+    // from the 1-rank runs: a fit at 6-11 us each priced that contrast, not the item, and put
+    // 3-4 rank runs 24-162 % high (model/NOTES.md, sessions 33 and 73). Since session 73.
+    bool bound_item_costs = true;
 };
 // The speed gauge's normalisation (session 50): each run's gauge CPU seconds per sample over
 // the runs' median is the host's speed factor during that run, and every time the run measured
