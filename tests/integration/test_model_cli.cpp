@@ -591,6 +591,18 @@ TEST(ModelCli, TermsThatOnlyNameTheSetupAreNoCandidates) {
     }
 }
 
+namespace {
+// A report's rank-interval given a clean compute of `per_step_s` a step in comp_s alone, at one
+// host speed throughout (the speed gauge would rescale a planted cost).
+void plant_compute(nlohmann::json &rk, double per_step_s) {
+    rk["gauge_cpu_s"] = 40e-6 * rk["gauge_samples"].get<double>();
+    for (auto &[name, t] : rk["timers"].items())
+        if (name != "comm_s" && name != "wait_s" && name != "output_s" && name != "rebalance_s")
+            t = 0.0;
+    rk["timers"]["comp_s"] = per_step_s * rk["steps"].get<double>();
+}
+} // namespace
+
 // An item priced above a particle's work (session 73): the fixture's 1- and 2-rank dam breaks
 // (the 2-rank one twice) with a clean compute of 20 ns an interaction plus a planted cost per ghost
 // particle. At 8 us a ghost (above a fluid particle's interactions, about 1 us here: session 73's
@@ -606,17 +618,9 @@ TEST(ModelCli, AnItemPricedAboveAParticleIsRefused) {
         for (const auto &from : {f.run1, f.run2, f.run2}) {
             auto j = load(from);
             for (auto &iv : j["intervals"])
-                for (auto &rk : iv["ranks"]) {
-                    rk["gauge_cpu_s"] = 40e-6 * rk["gauge_samples"].get<double>();
-                    const double steps = rk["steps"].get<double>();
-                    for (auto &[name, t] : rk["timers"].items())
-                        if (name != "comm_s" && name != "wait_s" && name != "output_s" &&
-                            name != "rebalance_s")
-                            t = 0.0;
-                    rk["timers"]["comp_s"] = (20e-9 * rk["interactions"].get<double>() +
-                                              per_ghost * rk["ghost"].get<double>()) *
-                                             steps;
-                }
+                for (auto &rk : iv["ranks"])
+                    plant_compute(rk, 20e-9 * rk["interactions"].get<double>() +
+                                          per_ghost * rk["ghost"].get<double>());
             const auto out = f.dir / ("item_" + tag + "_" + std::to_string(k++) + ".json");
             std::ofstream(out) << j.dump();
             paths += " " + out.string();
@@ -689,16 +693,8 @@ TEST(ModelCli, CoreRoundTripsAreACostOfTheRunsOfTwoThreads) {
                 for (auto &rk : iv["ranks"]) {
                     rk["core_round_trip_s"] = 5 * rt;
                     rk["core_round_trip_samples"] = 5;
-                    // One host speed throughout: the gauge would rescale the planted cost.
-                    rk["gauge_cpu_s"] = 40e-6 * rk["gauge_samples"].get<double>();
                     // A clean compute: 20 ns an interaction, plus the planted round trips.
-                    const double steps = rk["steps"].get<double>();
-                    for (auto &[name, t] : rk["timers"].items())
-                        if (name != "comm_s" && name != "wait_s" && name != "output_s" &&
-                            name != "rebalance_s")
-                            t = 0.0;
-                    rk["timers"]["comp_s"] =
-                        (20e-9 * rk["interactions"].get<double>() + cost * rt) * steps;
+                    plant_compute(rk, 20e-9 * rk["interactions"].get<double>() + cost * rt);
                     sum += rt;
                     ++points;
                 }
