@@ -467,6 +467,10 @@ template <CellGrid Grid> void Simulation<Grid>::check_state(std::int64_t step) c
     std::size_t first = 0;
     while (first < owned && !fault(first))
         ++first;
+    // The flag's tests are fault()'s; a flag without a faulty particle is a bug here, not a
+    // particle past the owned ones to name.
+    if (first == owned)
+        throw std::logic_error("check_state: the state flag found a fault that no particle has");
     const char *what = fault(first);
     fail_state(step, first,
                what == left_tank ? std::string(left_tank) + " (0 <= x <= " +
