@@ -476,19 +476,39 @@ def markdown(model, validation, args, out):
                           else "mean: calibrate --speed-gauge interval-mean)") if per_interval else
                        "divided by their run's factor (calibrate --speed-gauge run)")
                     + ", so the model is at one host speed.")
+            mean_factor = (gauge.get("mean_factor") or {}).get("value")
+            if mean_factor:
+                line += (f" Over the calibration's compute the host ran on average at "
+                         f"{mean_factor:.3f} times the median run's time (mean_factor; below 1 its "
+                         f"fast spells); the model is at the median run's speed, and at the mean "
+                         f"every prediction would be {100 * (mean_factor - 1):+.1f} % (tried on 23 "
+                         f"replayed jobs: the wall errors moved within the jobs' noise, "
+                         f"model/NOTES.md session 74).")
             elasticity = gauge.get("elasticity")
             beta = elasticity.get("used", 1.0) if elasticity else 1.0
-            if elasticity and "value" in elasticity:
+            between = (elasticity or {}).get("between_repeats")
+            if between:
+                line += (f" Between the repeats of one configuration the runs' compute follows "
+                         f"the gauge with an elasticity of {between['value']:.2f} (standard error "
+                         f"{between['se']:.2f}, {between['runs']} runs of "
+                         f"{between['configurations']} configurations: ln compute per interaction "
+                         f"on ln of the run's whole gauge, a level per configuration)")
+                if "value" in elasticity:
+                    line += (f"; within runs it reads {elasticity['value']:.2f} (standard error "
+                             f"{elasticity['se']:.2f}, each interval on the gauge around it), "
+                             f"flattened by the noise of a 30 us gauge sample (model/NOTES.md, "
+                             f"session 74)")
+                line += ", "
+            elif elasticity and "value" in elasticity:
                 line += (f" The runs' compute follows the gauge with an elasticity of "
                          f"{elasticity['value']:.2f} (standard error {elasticity['se']:.2f}, "
                          f"{elasticity['points']} busy rank-intervals: ln compute per interaction on "
-                         f"ln gauge, each run and rank's own level and trend through the run apart), "
-                         + (f"so each factor is applied raised to {beta:.2f} (calibrate "
-                            f"--speed-gauge-elasticity fitted)." if beta != 1 else
-                            f"and the factor is applied whole ({elasticity.get('reason', '')}; "
-                            f"raised to the elasticity in gauge-elasticity-fitted/, which made "
-                            f"the wall median worse in six of ten replayed jobs, "
-                            f"model/NOTES.md session 70)."))
+                         f"ln gauge, each run and rank's own level and trend through the run apart), ")
+            if between or (elasticity and "value" in elasticity):
+                line += (f"so each factor is applied raised to {beta:.2f} (calibrate "
+                         f"--speed-gauge-elasticity fitted)." if beta != 1 else
+                         f"and the factor is applied whole ({elasticity.get('reason', '')}; "
+                         f"raised to the elasticity in gauge-elasticity-fitted/).")
             if corrected:
                 f = s["speed_factor"]
                 line += (f" The validation runs ran at {f['min']:.2f}-{f['max']:.2f} times it; at each "
@@ -658,12 +678,15 @@ def markdown(model, validation, args, out):
              and ((model.get("speed_gauge") or {}).get("elasticity") or {}).get("used", 1.0) == 1.0,
              "gauge-elasticity-fitted",
              "The gauge's factor applied whole (calibrate --speed-gauge-elasticity one, sessions "
-             "50-70), kept in session 70 after the elasticity the calibration runs show (their "
-             "compute per interaction on their interval's gauge, in logs, 0.38-0.88) was "
-             "replayed on ten main jobs and made the wall median worse in six and the mean max "
-             "worse (20.0 against 17.7 %): not tuned (the "
-             "rule did not change). With each factor raised to this job's elasticity on the same "
-             "runs: {o} (gauge-elasticity-fitted/validation.json)."),
+             "50-74): kept in session 70 after the elasticity within runs (each interval's "
+             "compute per interaction on its gauge, 0.38-0.88) made the wall median worse in six "
+             "of ten replayed jobs; in session 74 that estimate proved flattened by the gauge "
+             "sample's noise: between repeats of one configuration, pooled over sixteen jobs on "
+             "this VM's Zen 4 host, it reads 0.92 for Cell+List and Cell+Table and 1.01 for "
+             "Cell+Sorted (standard errors 0.03), and each job's estimate between repeats is "
+             "above its estimate within runs in 23 of 23 jobs: not tuned. With each factor raised to this job's elasticity between "
+             "repeats (1 where its standard error is above 0.1) on the same runs: {o} "
+             "(gauge-elasticity-fitted/validation.json)."),
             ("form_chosen_by" in (model.get("jitter") or {}),
              "sqrt-jitter",
              "The jitter's form chosen by the calibration runs' own waits (calibrate --jitter-form "

@@ -17,6 +17,7 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 namespace sphperf::model {
 
@@ -1280,6 +1281,63 @@ json gauge_elasticity(const std::vector<SphRun> &runs,
                        "intervals"}};
 }
 
+json gauge_elasticity_between_repeats(const std::vector<SphRun> &runs, int cores) {
+    // Repeats of one configuration do the same work; what differs between them is the host.
+    using Key = std::tuple<std::string, std::string, std::string, double, double, std::int64_t, int,
+                           int, int, std::string, bool>;
+    std::map<Key, std::vector<std::pair<double, double>>> repeats; // (ln gauge, ln cost)
+    for (const auto &r : runs) {
+        const auto &c = r.config;
+        if (cores > 0 && c.ranks * c.threads > cores)
+            continue;
+        double compute = 0, work = 0;
+        for (const auto &iv : r.intervals)
+            for (const auto &rk : iv.ranks) {
+                compute += rk.compute_s();
+                work += rk.interactions * static_cast<double>(rk.steps);
+            }
+        const double g = r.gauge_per_sample_s();
+        if (!(compute > 0) || !(work > 0) || !(g > 0))
+            continue;
+        repeats[{c.setup, c.grid, c.boundary, c.scale, c.delta, c.steps, c.ranks, c.threads,
+                 c.nodes, c.decomposition, c.overlap}]
+            .emplace_back(std::log(g), std::log(compute / work));
+    }
+    std::vector<std::string> terms{"gauge"};
+    std::vector<const std::vector<std::pair<double, double>> *> groups;
+    for (const auto &[key, pts] : repeats)
+        if (pts.size() >= 2) {
+            groups.push_back(&pts);
+            terms.push_back("configuration" + std::to_string(groups.size() - 1));
+        }
+    std::vector<std::vector<double>> X;
+    std::vector<double> y;
+    for (std::size_t g = 0; g < groups.size(); ++g)
+        for (const auto &[lg, lc] : *groups[g]) {
+            std::vector<double> row(terms.size(), 0.0);
+            row[0] = lg;
+            row[1 + g] = 1;
+            X.push_back(std::move(row));
+            y.push_back(lc);
+        }
+    if (groups.empty() || y.size() < terms.size() + 2)
+        return nullptr;
+    LinearFit f;
+    try {
+        f = fit_linear(X, y, terms);
+    } catch (const std::invalid_argument &) {
+        return nullptr; // the repeats' gauges all alike
+    }
+    return {{"value", f.coef[0]},
+            {"se", f.se[0]},
+            {"runs", y.size()},
+            {"configurations", groups.size()},
+            {"method", "least squares of ln(compute per interaction) of the repeated "
+                       "configurations' runs within the cores on ln(the run's gauge), a level "
+                       "per configuration: each run's gauge averages all its samples, so its "
+                       "noise does not flatten the slope"}};
+}
+
 double gauge_elasticity_for(const json &speed_gauge) {
     if (!speed_gauge.is_object() || !speed_gauge.value("applied", false) ||
         !speed_gauge.contains("elasticity"))
@@ -1333,23 +1391,43 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
     // with fitted only.
     double beta = 1;
     json elasticity = gauge_elasticity(runs, interval_gauges, cores);
-    if (elasticity.is_null()) {
+    const json between = gauge_elasticity_between_repeats(runs, cores);
+    // The estimate fitted uses: between repeats (unbiased), else within runs.
+    const json &estimate = !between.is_null() ? between : elasticity;
+    if (estimate.is_null()) {
         elasticity = {{"used", 1.0},
                       {"reason", "too few busy rank-intervals within the cores to estimate it: "
                                  "the factor applied whole"}};
     } else if (elasticity_rule == GaugeElasticity::one) {
         elasticity["used"] = 1.0;
         elasticity["reason"] = "calibrate --speed-gauge-elasticity one: the factor applied whole";
-    } else if (elasticity.at("se").get<double>() > max_elasticity_se) {
+    } else if (estimate.at("se").get<double>() > max_elasticity_se) {
         elasticity["used"] = 1.0;
         elasticity["reason"] = "standard error above " + std::to_string(max_elasticity_se) +
                                ": the factor applied whole";
     } else {
-        beta = elasticity.at("value").get<double>();
+        beta = estimate.at("value").get<double>();
         elasticity["used"] = beta;
+        elasticity["reason"] = !between.is_null()
+                                   ? "calibrate --speed-gauge-elasticity fitted: the estimate "
+                                     "between repeats"
+                                   : "calibrate --speed-gauge-elasticity fitted: the estimate "
+                                     "within runs (no repeated configuration)";
     }
+    elasticity["between_repeats"] = between;
     json list = json::array();
     std::vector<double> logs;
+    // The calibration's compute as measured and at the reference speed: their ratio is the
+    // host's mean speed over it against the median run's.
+    auto total_compute = [&runs] {
+        double c = 0;
+        for (const auto &r : runs)
+            for (const auto &iv : r.intervals)
+                for (const auto &rk : iv.ranks)
+                    c += rk.compute_s();
+        return c;
+    };
+    const double compute_measured = total_compute();
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const double reference =
             rule == GaugeReference::grid
@@ -1406,6 +1484,16 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
            {"log_sd", logs.size() > 1 ? std::sqrt(ss / static_cast<double>(logs.size() - 1)) : 0.0},
            {"runs", list}};
     out["elasticity"] = elasticity;
+    const double compute_at_reference = total_compute();
+    if (compute_measured > 0 && compute_at_reference > 0)
+        out["mean_factor"] = {
+            {"value", compute_measured / compute_at_reference},
+            {"method", "the calibration runs' compute as measured over their compute at the "
+                       "reference speed: the host's mean speed over them against the median "
+                       "run's (below 1: faster on average, its fast spells). Reported, not "
+                       "applied: the model is at the median run's speed; at this mean, tried "
+                       "on 23 replayed jobs, the wall errors moved within the jobs' noise "
+                       "(model/NOTES.md, session 74)"}};
     if (rule == GaugeReference::grid) {
         out["references"] = references;
         out["method"] = out["method"].get<std::string>() +

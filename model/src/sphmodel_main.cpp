@@ -98,8 +98,9 @@ int run(int argc, char **argv) {
     cal->add_option("--speed-gauge-elasticity", o.gauge_elasticity,
                     "one (the times divided by the gauge's factor itself, sessions 50-70) or "
                     "fitted (by the factor raised to the elasticity of the runs' compute to the "
-                    "gauge, fitted on these runs and reported either way: 0.38-0.88 on this VM, "
-                    "yet worse in replays, model/NOTES.md session 70)")
+                    "gauge, fitted between the repeats of a configuration, else within runs, "
+                    "and reported either way: about 1 between repeats on this VM, "
+                    "model/NOTES.md session 74)")
         ->capture_default_str()
         ->check(cli::IsMember({"fitted", "one"}));
     cal->add_flag("--walls-term", o.walls_term,

@@ -113,13 +113,13 @@ constexpr int speed_gauge_half_window = 1;
 // jobs (256-bit) grid raised the max in 7 of 8 quiet ones (model/NOTES.md, session 58).
 enum class GaugeReference { grid, pooled };
 // How far the runs' times follow the gauge. one (the default): divided by the factor itself
-// (sessions 50-70); fitted: by the factor raised to the elasticity beta of the compute per
-// interaction to the interval's gauge, estimated from the calibration runs themselves
-// (gauge_elasticity, reported either way). On this VM the compute's logarithm rose by 0.4
-// to 0.9 of the gauge's in a slow spell (beta 0.38-0.88 in ten main jobs, standard
-// errors 0.02-0.04), yet replayed on those jobs fitted made the wall median worse in six of
-// ten and the mean max worse (20.0 against 17.7 %; model/NOTES.md, session 70): not the
-// default.
+// (sessions 50-74); fitted: by the factor raised to the elasticity beta of the compute per
+// interaction to the gauge, estimated from the calibration runs themselves, between the
+// repeats of a configuration where there are repeats (gauge_elasticity_between_repeats), else
+// within runs (gauge_elasticity); both reported either way. Within runs it read 0.38-0.88 in
+// session 70's ten jobs, and fitted on it made the wall median worse in six of them; that
+// estimate is flattened by the gauge sample's noise: between repeats it reads 0.92 (Cell+List
+// and Cell+Table) and 1.01 (Cell+Sorted) pooled over sixteen jobs (model/NOTES.md, session 74).
 enum class GaugeElasticity { fitted, one };
 struct CalibrateOptions {
     bool allow_other_host = false;
@@ -152,13 +152,17 @@ struct CalibrateOptions {
 // not bend the cost's shape over the flow. Applied unless `mode` is off, when every run carries
 // gauge samples; returns {"applied", "mode", "reason" or "reference_cpu_s_per_sample", "runs":
 // [{path, gauge_cpu_s_per_sample, factor (the run's, compute-weighted), interval_factors (with
-// interval)}], "log_sd" (standard deviation of ln factor over the runs)}. With
+// interval)}], "log_sd" (standard deviation of ln factor over the runs), "mean_factor":
+// {value: the runs' compute as measured over their compute at the reference, the host's mean
+// speed over the calibration against the median run's; reported, not applied}}. With
 // GaugeReference::grid each run's factor is over the median of its grid and thread count's runs
 // ("references": [{grid, threads, reference_cpu_s_per_sample, runs}]); the pooled median stays
 // in "reference_cpu_s_per_sample".
-// With GaugeElasticity::fitted the factors are raised to the elasticity gauge_elasticity
-// estimates from these runs ("elasticity": its estimate, and the exponent used: 1 where the
-// estimate's standard error is above max_elasticity_se or there is none); each run row then
+// With GaugeElasticity::fitted the factors are raised to the elasticity estimated from these
+// runs, between repeats where there are repeats (gauge_elasticity_between_repeats), else
+// within runs (gauge_elasticity) ("elasticity": the estimate within runs, "between_repeats",
+// and the exponent used: 1 where the estimate's standard error is above max_elasticity_se or
+// there is none); each run row then
 // carries "applied_factor" (and "interval_applied_factors") beside the gauge's own "factor".
 // `cores`: the node's, so that runs above them (their timers hold the time they were
 // descheduled) stay out of the estimate; 0: none left out.
@@ -174,6 +178,15 @@ nlohmann::json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode,
 // points. `interval_gauges[i]` has one entry per interval of runs[i].
 nlohmann::json gauge_elasticity(const std::vector<SphRun> &runs,
                                 const std::vector<std::vector<double>> &interval_gauges, int cores);
+// The same elasticity between the repeats of one configuration (the calibration's rounds):
+// least squares (GSL) of ln(compute per interaction) of each run within `cores` (0: all) on
+// ln(its whole gauge, SphRun::gauge_per_sample_s), a level per configuration run twice or
+// more. Within a run the regressor is a 30 us sample pooled over three intervals, whose noise
+// flattens the slope (errors in the variable): on this VM's Zen 4 host the estimate within
+// runs read 0.38-0.77 in fifteen jobs where between repeats it reads 0.92 (Cell+List and
+// Cell+Table, standard error 0.03) and 1.01 (Cell+Sorted); model/NOTES.md, session 74.
+// Returns {"value", "se", "runs", "configurations", "method"}, or null without repeats.
+nlohmann::json gauge_elasticity_between_repeats(const std::vector<SphRun> &runs, int cores);
 // Above this standard error the fitted elasticity is not used (the factor is applied whole).
 constexpr double max_elasticity_se = 0.1;
 // The exponent a model applies to the gauge's factor (model.json speed_gauge), 1 where it
