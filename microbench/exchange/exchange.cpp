@@ -239,7 +239,8 @@ private:
 struct Point {
     Mode mode = Mode::blocking;
     double gap_work_us = 0, payload_bytes = 0, rounds = 0;
-    Summary shift; // comm per shift, over all ranks and rounds
+    std::int64_t work_elements = 0; // the work of one round: gap_work_us x elements per us
+    Summary shift;                  // comm per shift, over all ranks and rounds
     double shift_p90_s = 0;
     // End of the previous shift to the first transfer (work + wait); overlapped: the work
     // behind the transfers, which is what the app knows when it completes them.
@@ -308,6 +309,7 @@ Point measure(const Config &cfg, const Chain &chain, Work &work, double elements
     Point p;
     p.mode = mode;
     p.gap_work_us = gap_us;
+    p.work_elements = elements;
     p.payload_bytes = bytes;
     p.rounds = rounds;
     p.shift = summarize(comm_all);
@@ -359,6 +361,7 @@ nlohmann::json point_json(const Point &p, int size, int cores) {
         {"overlapped", p.mode == Mode::overlapped},
         {"follows_shift", p.mode == Mode::following},
         {"gap_work_us", p.gap_work_us},
+        {"work_elements", p.work_elements},
         {"payload_bytes", p.payload_bytes},
         {"rounds", p.rounds},
         {"gap_s_mean", p.gap_s_mean},
