@@ -684,8 +684,9 @@ def markdown(model, validation, args, out):
              "sample's noise: between repeats of one configuration, pooled over sixteen jobs on "
              "this VM's Zen 4 host, it reads 0.92 for Cell+List and Cell+Table and 1.01 for "
              "Cell+Sorted (standard errors 0.03), and each job's estimate between repeats is "
-             "above its estimate within runs in 23 of 23 jobs: not tuned. With each factor raised to this job's elasticity between "
-             "repeats (1 where its standard error is above 0.1) on the same runs: {o} "
+             "above its estimate within runs in 23 of 23 jobs: not tuned. With each factor "
+             "raised to this job's elasticity between repeats (1 where its standard error is "
+             "above 0.1) on the same runs: {o} "
              "(gauge-elasticity-fitted/validation.json)."),
             ("form_chosen_by" in (model.get("jitter") or {}),
              "sqrt-jitter",

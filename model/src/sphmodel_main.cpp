@@ -96,7 +96,7 @@ int run(int argc, char **argv) {
         ->capture_default_str()
         ->check(cli::IsMember({"grid", "pooled"}));
     cal->add_option("--speed-gauge-elasticity", o.gauge_elasticity,
-                    "one (the times divided by the gauge's factor itself, sessions 50-70) or "
+                    "one (the times divided by the gauge's factor itself, sessions 50-74) or "
                     "fitted (by the factor raised to the elasticity of the runs' compute to the "
                     "gauge, fitted between the repeats of a configuration, else within runs, "
                     "and reported either way: about 1 between repeats on this VM, "

@@ -183,8 +183,8 @@ nlohmann::json gauge_elasticity(const std::vector<SphRun> &runs,
 // ln(its whole gauge, SphRun::gauge_per_sample_s), a level per configuration run twice or
 // more. Within a run the regressor is a 30 us sample pooled over three intervals, whose noise
 // flattens the slope (errors in the variable): on this VM's Zen 4 host the estimate within
-// runs read 0.38-0.77 in fifteen jobs where between repeats it reads 0.92 (Cell+List and
-// Cell+Table, standard error 0.03) and 1.01 (Cell+Sorted); model/NOTES.md, session 74.
+// runs read 0.38-0.78 in sixteen jobs where between repeats, pooled, it reads 0.92 (Cell+List
+// and Cell+Table, standard error 0.03) and 1.01 (Cell+Sorted); model/NOTES.md, session 74.
 // Returns {"value", "se", "runs", "configurations", "method"}, or null without repeats.
 nlohmann::json gauge_elasticity_between_repeats(const std::vector<SphRun> &runs, int cores);
 // Above this standard error the fitted elasticity is not used (the factor is applied whole).
