@@ -1717,8 +1717,8 @@ TEST(Calibrate, GridGaugeReferenceNormalisesEachGridByItsOwnRuns) {
     EXPECT_NEAR(pooled[2].wall_s, 2.0 * 44.0 / 40.0, 1e-12);
     // The host's mean speed over the calibration against the median run's: the four runs'
     // compute (1 s each) as measured over the same at the reference speed.
-    EXPECT_NEAR(p["mean_factor"]["value"].get<double>(),
-                4.0 / (2 * 44.0 / 48.0 + 2 * 44.0 / 40.0), 1e-12);
+    EXPECT_NEAR(p["mean_factor"]["value"].get<double>(), 4.0 / (2 * 44.0 / 48.0 + 2 * 44.0 / 40.0),
+                1e-12);
     EXPECT_NEAR(gauge_reference_for(p, "table", 1).get<double>(), 44e-6, 1e-15);
     EXPECT_TRUE(gauge_reference_for(nlohmann::json{{"applied", false}}, "table", 1).is_null());
 }
