@@ -500,5 +500,7 @@ beside model_and_validate "$out/pooled-one-percent" pooled-one-percent none abso
 # The term rule of sessions 13-63: the smallest set within one standard error of the best score.
 beside model_and_validate "$out/levelled-one-se" levelled-one-se froude
 for pid in "${beside_pids[@]}"; do wait "$pid"; done # a failed comparison fails the job
+quick_flag=()
+[ "$quick" -eq 1 ] && quick_flag=(--quick)
 /usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" \
-    --validation-s "$val_s" --fresh-exchange-s "$fresh_s"
+    --validation-s "$val_s" --fresh-exchange-s "$fresh_s" "${quick_flag[@]}"

@@ -348,19 +348,72 @@ def sharing_in_use(d):
     return "per-step"
 
 
+def config_label(r):
+    return (f"{r['setup']} {r['grid']}{' balanced' if r.get('decomposition') == 'balanced' else ''}"
+            f"{' overlap' if r.get('overlap') else ''} s{r['scale']:g} {r['ranks']} x {r['threads']}")
+
+
+def summary_lines(validation, args):
+    """The headline first: each target against its figure, then what bounds them on this host."""
+    s = validation["summary"]
+    wall, comm = s.get("wall_abs_error"), s.get("inline_comm_abs_error_per_interval")
+    if not wall:
+        return []
+    pct = lambda v: f"{100 * v:.1f} %"
+    mark = lambda v, target: "met" if v <= target else "**missed**"
+    rows = [("Total wall time, median \\|error\\| over the validation set", pct(wall["median"]), "5 %",
+             mark(wall["median"], 0.05)),
+            ("Total wall time, max \\|error\\|", pct(wall["max"]), "10 %", mark(wall["max"], 0.10))]
+    if comm:
+        rows.append(("Communication (inline prediction), median \\|error\\| per interval",
+                     pct(comm["median"]), "20 %", mark(comm["median"], 0.20)))
+    lines = ["## Summary", ""]
+    if args.quick:
+        lines += ["A `--quick` job: smoke sizes that check every stage runs. Its figures mean "
+                  "nothing about the model; run the job without `--quick` for them.", ""]
+    lines += ["| figure | measured | target | |", "|---|---|---|---|"]
+    lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in rows]
+    lines.append("")
+    worst = sorted(validation["configurations"], key=lambda r: -abs(r["wall_error"]))[:3]
+    lines.append("Largest wall-time errors (prediction against the run as measured): " +
+                 ", ".join(f"{config_label(r)} {100 * r['wall_error']:+.1f} %" for r in worst) + ".")
+    context = []
+    own = s.get("wall_abs_error_speed_corrected")
+    if own:
+        context.append(f"at each run's own host speed (the speed gauge's factor, a diagnostic) median "
+                       f"{pct(own['median'])}, max {pct(own['max'])}")
+    floor = s.get("wall_noise_floor")
+    if floor:
+        context.append(f"a model exact in expectation, on single runs as noisy as the calibration "
+                       f"runs, would show median {pct(floor['median_abs_error']['median'])}, max "
+                       f"{pct(floor['max_abs_error']['median'])} (the noise floor)")
+    band = s.get("wall_band")
+    if band:
+        context.append(f"{band['within']} of {band['count']} configurations measured within their "
+                       f"band of +-{band['sds']:g} sd")
+    if context:
+        lines.append("For scale: " + "; ".join(context) + ".")
+    if args.calibration_s and args.validation_s:
+        lines.append(f"Calibration cost {100 * args.calibration_s / args.validation_s:.0f} % of the "
+                     f"wall time of the validation runs it predicts ({args.calibration_s:.0f} s "
+                     f"against {args.validation_s:.0f} s).")
+    lines += ["", "Everything below is the detail: how the model was built from this host's runs, "
+              "each configuration's errors by phase, and every rule chosen after seeing validation "
+              "data (marked **tuned**) with the untuned result beside it.", "", "## Detail", ""]
+    return lines
+
+
 def markdown(model, validation, args, out):
     replaying = sharing_in_use(args.dir) == "replay"
     lines = ["# Validation of the SPH runtime model", ""]
     lines.append(f"Host `{validation.get('host')}`, commit `{validation.get('git_commit')}`, "
                  f"{validation.get('timestamp')}.")
     lines.append("")
+    lines += summary_lines(validation, args)
     cal = model["calibration_runs"]
     lines.append("Calibration runs (scale, ranks x threads): " +
                  ", ".join(f"{c['setup']} {c['grid']} s{c['scale']:g} {c['ranks']}x{c['threads']} "
                            f"{c['steps']} steps ({c['wall_s']:.1f} s)" for c in cal) + ".")
-    if args.calibration_s and args.validation_s:
-        lines.append(f"Calibration took {args.calibration_s:.0f} s of wall time, the validation runs it "
-                     f"predicts {args.validation_s:.0f} s: {100 * args.calibration_s / args.validation_s:.0f} %.")
     for c in model["compute"]:
         lvl = c.get("run_level")
         if not lvl:
@@ -1111,6 +1164,8 @@ def main():
     ap.add_argument("--dir", required=True, help="results folder holding model.json etc.")
     ap.add_argument("--calibration-s", type=float, default=0.0, help="wall time of calibration runs (s)")
     ap.add_argument("--validation-s", type=float, default=0.0, help="wall time of validation runs (s)")
+    ap.add_argument("--quick", action="store_true",
+                    help="the job ran with --quick (smoke sizes): validation.md says its figures mean nothing")
     ap.add_argument("--fresh-exchange-s", type=float, default=0.0,
                     help="wall time of the exchange benchmarks run before the validation runs (s)")
     args = ap.parse_args()

@@ -54,7 +54,15 @@ reps = glob.glob(os.path.join(d, "repeats", "*.rep*.json"))
 assert len(reps) == 12, f"repeats/ holds {len(reps)} runs, expected 4 configurations x 3"
 first = json.load(open(os.path.join(d, "first-runs", "validation.json")))
 assert first["summary"]["wall_abs_error"]["count"] == n, "first-runs/ validates another set"
-assert "run 3 times each" in open(os.path.join(d, "validation.md")).read(), "validation.md: no repeats"
+md = open(os.path.join(d, "validation.md")).read()
+assert "run 3 times each" in md, "validation.md: no repeats"
+# The summary comes first and carries this validation's own headline figures.
+head = md.split("## Detail")[0]
+assert "## Summary" in head, "validation.md: no summary before the detail"
+assert "`--quick` job" in head, "validation.md: a --quick job's summary does not say so"
+w = v["summary"]["wall_abs_error"]
+for key in ("median", "max"):
+    assert f"{100 * w[key]:.1f} %" in head, f"validation.md: the summary lacks the wall {key} error"
 PY
     echo "profile: $results/$host/machine.json"
     ;;
