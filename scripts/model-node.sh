@@ -495,6 +495,10 @@ beside model_and_validate "$out/froude-order" "$rule" froude relative replay \
 # of it (session 73: the cost's course through the runs, model/NOTES.md).
 beside model_and_validate "$out/full-carry" "$rule" froude relative replay \
     "--memory-order-carry 1"
+# Every prediction at the median calibration run's host speed (sessions 50-74), where the list
+# and table dam breaks, the long single runs, are now at the host's mean speed (session 75).
+beside model_and_validate "$out/median-host-speed" "$rule" froude relative replay \
+    "--host-speed median"
 beside model_and_validate "$out/no-profile" "$rule" none absolute
 beside model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute
 # The term rule of sessions 13-63: the smallest set within one standard error of the best score.

@@ -68,21 +68,36 @@ model_and_validate() {
         [ -s "$dir/$name.err" ] && cat "$dir/$name.err" >&2
         rm -f "$dir/$name.err"
     }
-    predict dambreak_s1_table --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 --steps "$v_steps"
-    predict dambreak_s1_table_balanced --setup dambreak --grid table --scale 1 --ranks 2,4 \
-        --steps "$v_steps" --decomposition balanced
-    predict dambreak_s1_list --setup dambreak --grid list --scale 1 --ranks 1,2,3 --steps "$v_steps"
-    predict dambreak_s2_table --setup dambreak --grid table --scale 2 --ranks 2,4 --steps "$v2_steps"
-    predict still_s1_table --setup still --grid table --scale 1 --ranks 2,3 --steps "$vs_steps"
-    predict still_s1_list --setup still --grid list --scale 1 --ranks 2 --steps "$vs_steps"
-    predict dambreak_s1_sorted --setup dambreak --grid sorted --scale 1 --ranks 2 --steps "$v_steps"
-    predict still_s1_sorted --setup still --grid sorted --scale 1 --ranks 2,3 --steps "$vs_steps"
-    predict dambreak_s1_sorted_overlap --setup dambreak --grid sorted --overlap --scale 1 --ranks 2 \
+    # The host speed each prediction is at (predict --host-speed, session 75): the list and
+    # table dam breaks, single runs of 8-30 s that span the host's spells (5-60 s), at the
+    # host's mean speed over the calibration, what one run's sum of steps pays; the others,
+    # validated as the median of three runs or single runs of about 2 s, each within one spell
+    # mostly, at the median calibration run's speed. A comparison model's own --host-speed
+    # (predict_extra) sets every prediction's.
+    local long=(--host-speed mean) short=(--host-speed median)
+    if [[ " ${predict_extra[*]} " == *" --host-speed "* ]]; then long=() short=(); fi
+    predict dambreak_s1_table "${long[@]}" --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 \
         --steps "$v_steps"
-    predict still_s1_sorted_overlap --setup still --grid sorted --overlap --scale 1 --ranks 2 \
+    predict dambreak_s1_table_balanced "${long[@]}" --setup dambreak --grid table --scale 1 \
+        --ranks 2,4 --steps "$v_steps" --decomposition balanced
+    predict dambreak_s1_list "${long[@]}" --setup dambreak --grid list --scale 1 --ranks 1,2,3 \
+        --steps "$v_steps"
+    predict dambreak_s2_table "${long[@]}" --setup dambreak --grid table --scale 2 --ranks 2,4 \
+        --steps "$v2_steps"
+    predict still_s1_table "${short[@]}" --setup still --grid table --scale 1 --ranks 2,3 \
         --steps "$vs_steps"
-    predict dambreak_s1_sorted_t2 --threads 2 --setup dambreak --grid sorted --scale 1 --ranks 1 \
+    predict still_s1_list "${short[@]}" --setup still --grid list --scale 1 --ranks 2 \
+        --steps "$vs_steps"
+    predict dambreak_s1_sorted "${short[@]}" --setup dambreak --grid sorted --scale 1 --ranks 2 \
         --steps "$v_steps"
+    predict still_s1_sorted "${short[@]}" --setup still --grid sorted --scale 1 --ranks 2,3 \
+        --steps "$vs_steps"
+    predict dambreak_s1_sorted_overlap "${short[@]}" --setup dambreak --grid sorted --overlap \
+        --scale 1 --ranks 2 --steps "$v_steps"
+    predict still_s1_sorted_overlap "${short[@]}" --setup still --grid sorted --overlap --scale 1 \
+        --ranks 2 --steps "$vs_steps"
+    predict dambreak_s1_sorted_t2 --threads 2 "${short[@]}" --setup dambreak --grid sorted \
+        --scale 1 --ranks 1 --steps "$v_steps"
 
     stage "validation ($rule)"
     "$build/bin/sphmodel" validate --prediction "$dir"/prediction_*.json \

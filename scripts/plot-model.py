@@ -533,10 +533,10 @@ def markdown(model, validation, args, out):
             if mean_factor:
                 line += (f" Over the calibration's compute the host ran on average at "
                          f"{mean_factor:.3f} times the median run's time (mean_factor; below 1 its "
-                         f"fast spells); the model is at the median run's speed, and at the mean "
-                         f"every prediction would be {100 * (mean_factor - 1):+.1f} % (tried on 23 "
-                         f"replayed jobs: the wall errors moved within the jobs' noise, "
-                         f"model/NOTES.md session 74).")
+                         f"fast spells); the model is at the median run's speed, and predict "
+                         f"--host-speed mean puts a prediction at the mean ({100 * (mean_factor - 1):+.1f} "
+                         f"% on every compute time): the long single runs here, see below "
+                         f"(model/NOTES.md, sessions 74-75).")
             elasticity = gauge.get("elasticity")
             beta = elasticity.get("used", 1.0) if elasticity else 1.0
             between = (elasticity or {}).get("between_repeats")
@@ -658,8 +658,36 @@ def markdown(model, validation, args, out):
                 return None
             return (load(path).get("model_source") or {}).get("memory_order_carry")
 
+        def host_speeds():
+            """Each prediction's predict --host-speed rule and factor, by prediction file."""
+            out = {}
+            for path in sorted(glob.glob(os.path.join(args.dir, "prediction_*.json"))):
+                hs = load(path).get("host_speed")
+                if hs:
+                    out[os.path.basename(path)[len("prediction_"):-len(".json")]] = hs
+            return out
+
+        speeds = host_speeds()
+        at_mean = sorted(k for k, v in speeds.items() if v.get("rule") == "mean")
+        mean_factor_used = next((v["factor"] for v in speeds.values() if v.get("rule") == "mean"), None)
         # Each tuned choice beside the model before it, on the same runs: (in use, folder, line).
         choices = [
+            (bool(at_mean) and len(at_mean) < len(speeds),
+             "median-host-speed",
+             "The long single validation runs (" + ", ".join(at_mean) + ") predicted at the "
+             "host's mean speed over the calibration (predict --host-speed mean, every compute "
+             "time times speed_gauge.mean_factor, here "
+             + (f"{mean_factor_used:.3f}" if mean_factor_used else "-")
+             + "), the others at the median calibration run's (--host-speed median), since "
+             "session 75: a sum of step times pays the host's fast spells in their share, and runs "
+             "of 8-30 s span them (5-60 s here) where the median of three short runs lands on the "
+             "median; over nineteen Zen 4 main jobs the list and table dam breaks had come out "
+             "+8 to +13 % as measured (scripts/model-bias.py), +5 to +10 % with it. Decided after "
+             "replaying those jobs and seven earlier-host ones (Zen 4: mean of the jobs' wall "
+             "medians 6.94 -> 6.31 %, maxes 22.5 -> 20.7 %; earlier hosts 4.23 -> 4.30 and 12.7 "
+             "-> 12.4 %; every prediction at the mean: 6.45 and 20.6, 4.54 and 12.6 %): **tuned**. Every prediction at the "
+             "median run's speed (sessions 50-74) on the same runs: {o} "
+             "(median-host-speed/validation.json)."),
             ({c.get("term_selection", "pooled-one-percent") for c in model["compute"]} == {"levelled-best"},
              "levelled-one-se",
              "Compute-cost terms chosen by levelled-best (a cost level per setup, the set with the best "

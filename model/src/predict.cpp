@@ -48,6 +48,9 @@ struct Costs {
     std::vector<std::pair<double, double>> profile;
     double profile_end = 0; // Froude time the profile's runs reach
     double scale = 1;
+    // Every compute time's factor from the model's reference speed to the one predicted at
+    // (predict --host-speed: 1 at the median run's, speed_gauge.mean_factor at the mean).
+    double host_speed = 1;
     CommModel comm;
     ExchangeModel exchange; // empty: the shifts are costed message by message with Hockney
     double record_bytes = 72;
@@ -353,7 +356,8 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         for (const auto &t : c.compute.terms)
             x.push_back(w.value(t));
         s.order_factor = order.empty() ? 1.0 : order[static_cast<std::size_t>(r)];
-        s.compute_s = std::max(0.0, c.compute.predict(x)) * profile_factor(c, t) * s.order_factor;
+        s.compute_s = std::max(0.0, c.compute.predict(x)) * profile_factor(c, t) * s.order_factor *
+                      c.host_speed;
         compute.push_back(s.compute_s);
         field.push_back(s.field);
     }
@@ -572,6 +576,43 @@ ColumnWeights balance_weights(const json &model, const std::string &setup, const
     return w;
 }
 
+namespace {
+
+// predict --host-speed: {"rule", "factor" on every compute time, "source"}. The model is at
+// the median calibration run's speed; mean needs calibrate's mean_factor (session 74 on), else
+// the factor stays 1 and the source says why.
+json host_speed_of(const json &model, const std::string &rule) {
+    if (rule != "mean" && rule != "median")
+        throw UsageError("--host-speed '" + rule + "': expected mean or median");
+    json out{{"rule", rule}, {"factor", 1.0}};
+    if (rule == "median") {
+        out["source"] = "the median calibration run's speed (the model's reference)";
+        return out;
+    }
+    const json gauge = model.value("speed_gauge", json(nullptr));
+    const bool applied = gauge.is_object() && gauge.value("applied", false);
+    if (!applied || !gauge.contains("mean_factor") || !gauge.at("mean_factor").contains("value")) {
+        out["source"] = applied ? "the model has no speed_gauge.mean_factor (calibrated before "
+                                  "session 74): at the median run's speed"
+                                : "the calibration runs as measured (no speed gauge applied)";
+        return out;
+    }
+    const double f = gauge.at("mean_factor").at("value").get<double>();
+    if (!std::isfinite(f) || f <= 0)
+        throw UsageError("model speed_gauge.mean_factor " + std::to_string(f) +
+                         ": expected a positive factor");
+    out["factor"] = f;
+    out["source"] = "the host's mean speed over the calibration (speed_gauge.mean_factor)";
+    return out;
+}
+
+// A gauge reference (CPU seconds per sample, or null) at the predicted host speed.
+json at_host_speed(const json &reference, double factor) {
+    return reference.is_number() ? json(reference.get<double>() * factor) : reference;
+}
+
+} // namespace
+
 json predict(const json &header, const json &model, const PredictRequest &req) {
     if (!model.contains("traces") || !model["traces"].contains(req.setup))
         throw UsageError("the model has no workload trace of setup '" + req.setup +
@@ -589,6 +630,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     c.sharing_line = req.time_sharing_overhead == "line";
     c.sharing_replay = req.time_sharing_overhead == "replay";
     c.replay_slice_s = req.replay_slice_s;
+    const json host_speed = host_speed_of(model, req.host_speed);
+    c.host_speed = host_speed.at("factor").get<double>();
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
@@ -675,6 +718,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         out["model_source"]["rank_disorder_source"] = c.column_disorder->source;
     out["fluid_particles"] = probe.fluid_particles;
     out["request"]["time_sharing_overhead"] = req.time_sharing_overhead;
+    out["host_speed"] = host_speed;
     if (c.sharing_replay)
         out["request"]["replay_slice_s"] = req.replay_slice_s;
     out["request"]["decompositions"] = req.decompositions;
@@ -928,8 +972,9 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  // The host speed the prediction is at (calibrate's speed gauge; null: the
                  // calibration runs as measured).
                  {"speed_gauge_reference_cpu_s",
-                  gauge_reference_for(model.value("speed_gauge", json(nullptr)), req.grid,
-                                      req.threads)},
+                  at_host_speed(gauge_reference_for(model.value("speed_gauge", json(nullptr)),
+                                                    req.grid, req.threads),
+                                c.host_speed)},
                  // How far a run's time follows its gauge (calibrate's elasticity; 1: whole).
                  {"speed_gauge_elasticity",
                   gauge_elasticity_for(model.value("speed_gauge", json(nullptr)))},

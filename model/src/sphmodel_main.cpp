@@ -214,6 +214,15 @@ int run(int argc, char **argv) {
                     "(default 0.5: tuned, model/NOTES.md session 73)")
         ->capture_default_str()
         ->check(cli::Range(0.0, 1.0));
+    pre->add_option("--host-speed", q.host_speed,
+                    "The host speed the compute is predicted at: mean (the host's mean speed "
+                    "over the calibration, its fast spells in their share: what one run's sum "
+                    "of steps pays) or median (the median calibration run's speed, where the "
+                    "median of repeated short runs lands; sessions 50-74). The main job "
+                    "predicts its long single runs (the list and table dam breaks, 8-30 s) at "
+                    "the mean and the others at the median (model/NOTES.md, session 75)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"mean", "median"}));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

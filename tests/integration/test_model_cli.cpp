@@ -648,8 +648,9 @@ TEST(ModelCli, AnItemPricedAboveAParticleIsRefused) {
         const bool with_ghost =
             std::find(cand["terms"].begin(), cand["terms"].end(), "ghost") != cand["terms"].end();
         const bool above = cand.value("item_above_a_particle", false);
-        if (with_ghost && !cand.value("negative_cost", false) && !cand.contains("rank_deficient"))
+        if (with_ghost && !cand.value("negative_cost", false) && !cand.contains("rank_deficient")) {
             EXPECT_TRUE(above) << cand["terms"];
+        }
         refused += above ? 1 : 0;
     }
     EXPECT_GT(refused, 0);
@@ -1039,6 +1040,72 @@ TEST(ModelCli, RanksOverNodesPayTheInterNodeClass) {
     ASSERT_EQ(r.code, 0) << r.err;
     const auto v = load(val);
     EXPECT_TRUE(v["configurations"].empty()) << v["configurations"];
+}
+
+// predict --host-speed (session 75): mean puts every compute time at the host's mean speed over
+// the calibration (speed_gauge.mean_factor), and the gauge reference a run's own speed is read
+// against with it; median (the model's reference, sessions 50-74) leaves them; a model without
+// the factor predicts at the median and says so; a factor that is not positive is refused.
+TEST(ModelCli, HostSpeedMeanScalesEveryComputeByTheMeanFactor) {
+    const auto &f = fixture();
+    auto model = load(f.model);
+    constexpr double reference = 5e-5, factor = 0.9;
+    model["speed_gauge"] = {{"applied", true},
+                            {"reference_cpu_s_per_sample", reference},
+                            {"mean_factor", {{"value", factor}}}};
+    auto write = [&](const nlohmann::json &m, const std::string &name) {
+        const auto path = f.dir / ("model_speed_" + name + ".json");
+        std::ofstream(path) << m.dump();
+        return path;
+    };
+    const auto with_factor = write(model, "mean");
+    auto predict = [&](const fs::path &m, const std::string &speed, const std::string &name) {
+        const auto out = f.dir / ("pred_speed_" + name + ".json");
+        return std::pair{run(bin("sphmodel") + " predict --model " + m.string() +
+                             " --setup dambreak --scale 0.5 --ranks 1,2 --steps 60 --interval 30" +
+                             speed + " --out " + out.string()),
+                         out};
+    };
+    const auto [med, med_out] = predict(with_factor, " --host-speed median", "median");
+    ASSERT_EQ(med.code, 0) << med.err;
+    const auto [mean, mean_out] = predict(with_factor, "", "default");
+    ASSERT_EQ(mean.code, 0) << mean.err;
+    const auto pm = load(med_out), pa = load(mean_out);
+    EXPECT_EQ(pm["host_speed"]["rule"], "median");
+    EXPECT_EQ(pm["host_speed"]["factor"], 1.0);
+    EXPECT_EQ(pa["host_speed"]["rule"], "mean"); // the default: what one run's sum pays
+    EXPECT_EQ(pa["host_speed"]["factor"], factor);
+    ASSERT_EQ(pm["configurations"].size(), pa["configurations"].size());
+    for (std::size_t k = 0; k < pm["configurations"].size(); ++k) {
+        const auto &cm = pm["configurations"][k], &ca = pa["configurations"][k];
+        const double cmed = cm["totals"]["compute_s"].get<double>();
+        ASSERT_GT(cmed, 0);
+        EXPECT_NEAR(ca["totals"]["compute_s"].get<double>(), factor * cmed, 1e-9 * cmed) << k;
+        EXPECT_LT(ca["wall_s"].get<double>(), cm["wall_s"].get<double>()) << k;
+        EXPECT_NEAR(cm["speed_gauge_reference_cpu_s"].get<double>(), reference, 1e-15);
+        EXPECT_NEAR(ca["speed_gauge_reference_cpu_s"].get<double>(), factor * reference, 1e-15);
+    }
+    // Calibrated before session 74 (no mean_factor): at the median run's speed, said so.
+    auto old = model;
+    old["speed_gauge"].erase("mean_factor");
+    const auto [before, before_out] = predict(write(old, "old"), " --host-speed mean", "old");
+    ASSERT_EQ(before.code, 0) << before.err;
+    const auto po = load(before_out);
+    EXPECT_EQ(po["host_speed"]["factor"], 1.0);
+    EXPECT_NE(po["host_speed"]["source"].get<std::string>().find("no speed_gauge.mean_factor"),
+              std::string::npos);
+    EXPECT_EQ(po["configurations"][0]["wall_s"], pm["configurations"][0]["wall_s"]);
+    // A factor that is not positive, and a rule that does not exist: exit 2, no file.
+    auto bad = model;
+    bad["speed_gauge"]["mean_factor"]["value"] = -0.5;
+    const auto [negative, negative_out] = predict(write(bad, "bad"), "", "bad");
+    EXPECT_EQ(negative.code, 2);
+    EXPECT_NE(negative.err.find("mean_factor"), std::string::npos) << negative.err;
+    EXPECT_FALSE(fs::exists(negative_out));
+    const auto [unknown, unknown_out] = predict(with_factor, " --host-speed fastest", "unknown");
+    EXPECT_EQ(unknown.code, 2);
+    EXPECT_NE(unknown.err.find("fastest"), std::string::npos) << unknown.err;
+    EXPECT_FALSE(fs::exists(unknown_out));
 }
 
 TEST(ModelCli, InlineCommunicationPredictionIsRecorded) {
