@@ -51,7 +51,12 @@ print(f"slurm-check: validation.json holds {n} configurations")
 import glob, os
 d = os.path.dirname(sys.argv[1])
 reps = glob.glob(os.path.join(d, "repeats", "*.rep*.json"))
-assert len(reps) == 12, f"repeats/ holds {len(reps)} runs, expected 4 configurations x 3"
+names = {os.path.basename(p).split(".rep")[0] for p in reps}
+assert len(names) >= 4, f"repeats/ holds runs of {len(names)} configurations, expected the short set"
+assert len(reps) == 3 * len(names), f"repeats/ holds {len(reps)} runs of {len(names)} configurations, expected 3 each"
+for name in names:
+    assert os.path.exists(os.path.join(d, "runs", name + ".json")), f"runs/ lacks the median run of {name}"
+print(f"slurm-check: repeats/ holds 3 runs each of {len(names)} short configurations")
 first = json.load(open(os.path.join(d, "first-runs", "validation.json")))
 assert first["summary"]["wall_abs_error"]["count"] == n, "first-runs/ validates another set"
 md = open(os.path.join(d, "validation.md")).read()
@@ -65,6 +70,7 @@ for key in ("median", "max"):
     assert f"{100 * w[key]:.1f} %" in head, f"validation.md: the summary lacks the wall {key} error"
 PY
     echo "profile: $results/$host/machine.json"
+    echo "slurm-check: main job OK" # ctest passes on this line only: every check above ran
     ;;
 threads)
     slurm_up || { echo "slurm-check: no Slurm up (SLURM_CONF unset or sinfo fails): skipped"; exit 77; }
