@@ -99,7 +99,8 @@ fresh_exchange() {
 # The validation set's lengths and model_and_validate (scripts/model-set.sh, which
 # scripts/replay-job.sh shares).
 source "$root/scripts/model-set.sh"
-# The validation runs under 3 s (the sorted still tanks and the 2-thread dam break) run 3 times
+# The validation runs under 3 s (the sorted still tanks, the 2-thread dam break and, since session
+# 75, the sorted dam breaks on 2 ranks) run 3 times
 # and the median run is validated: a slow spell of this VM (10-35 % over minutes) covers a whole
 # short run (session 34: the 2-rank still tank took 1.41 s, its --overlap twin 1.26 s, predicted
 # 1.25). Since session 42 the 3 runs are spread over the job (after the first validation runs,
@@ -326,6 +327,13 @@ short_pass() {
         --interval "$interval"
     validate_run --rep "$k" 2 val_still_s1_list_r2 --setup still --grid list --steps "$vs_steps" \
         --interval "$interval"
+    # The Cell+Sorted dam breaks on 2 ranks, blocking and --overlap (about 2.3 s each here;
+    # single runs until session 75, when their errors spread 8-10 % over twenty jobs against
+    # 5-6 % for the repeated sorted still tanks).
+    validate_run --rep "$k" --twin 2 val_dambreak_s1_sorted_r2 --setup dambreak --grid sorted \
+        --steps "$v_steps" --interval "$interval"
+    validate_run --rep "$k" 2 val_dambreak_s1_sorted_overlap_r2 --setup dambreak --grid sorted \
+        --overlap --steps "$v_steps" --interval "$interval"
     if [ "$k" -eq "$short_repeats" ]; then
         local rep1
         for rep1 in "$repeats"/*.rep1.json; do
@@ -369,12 +377,9 @@ validate_run 2 val_dambreak_s2_table_r2 --setup dambreak --grid table --scale 2 
     --steps "$v2_steps" --interval "$interval"
 validate_run 4 val_dambreak_s2_table_r4 --setup dambreak --grid table --scale 2 \
     --steps "$v2_steps" --interval "$interval"
-validate_run --twin 2 val_dambreak_s1_sorted_r2 --setup dambreak --grid sorted --steps "$v_steps" \
-    --interval "$interval"
-# Non-blocking ghost exchanges (sph --overlap), beside their blocking twins: the dam break's
-# sorted 2-rank run above, and the still tank, where both ranks compute and send large ghosts.
-validate_run 2 val_dambreak_s1_sorted_overlap_r2 --setup dambreak --grid sorted --overlap \
-    --steps "$v_steps" --interval "$interval"
+# Non-blocking ghost exchanges (sph --overlap) run beside their blocking twins in the short
+# passes: the dam break's sorted 2-rank run, and the still tank, where both ranks compute and
+# send large ghosts.
 stage "short validation runs, pass $short_repeats of $short_repeats"
 short_pass "$short_repeats"
 

@@ -960,7 +960,8 @@ def markdown(model, validation, args, out):
             if repeated:
                 text += ("The shortest validation runs (under 3 s in the full job; since session 71 "
                          "also the Cell+List and Cell+Table still tanks, 4-6 s, after the list still "
-                         "tank was a job's largest miss in four of seven jobs), run 3 times each "
+                         "tank was a job's largest miss in four of seven jobs; since session 75 also the "
+                         "Cell+Sorted dam breaks on 2 ranks, about 2.3 s, single runs before), run 3 times each "
                          "and the run with the median wall time validated (chosen in session 34 after "
                          "a 1.4 s run came out 11 % slower than its twin; the runs spread over the "
                          "job since session 42, back to back before): " + "; ".join(repeated)
