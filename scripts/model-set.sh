@@ -71,7 +71,7 @@ model_and_validate() {
     # The host speed each prediction is at (predict --host-speed, session 75): the list and
     # table dam breaks, single runs of 8-30 s that span the host's spells (5-60 s), at the
     # host's mean speed over the calibration, what one run's sum of steps pays; the others,
-    # validated as the median of three runs of 1-6 s (scripts/model-node.sh, short_pass), at
+    # validated as the median of three runs of about 1-7 s (scripts/model-node.sh, short_pass), at
     # the median calibration run's speed, where such a median lands. A comparison model's own
     # --host-speed (predict_extra) sets every prediction's.
     local long=(--host-speed mean) short=(--host-speed median)
