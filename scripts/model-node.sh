@@ -504,6 +504,9 @@ beside model_and_validate "$out/full-carry" "$rule" froude relative replay \
 # and table dam breaks, the long single runs, are now at the host's mean speed (session 75).
 beside model_and_validate "$out/median-host-speed" "$rule" froude relative replay \
     "--host-speed median"
+# The long single runs at the host's mean speed over every calibration run (session 75), where
+# they are now at the mean over their own grid and setup's runs (session 76).
+HOST_SPEED_LONG=mean-pooled beside model_and_validate "$out/pooled-mean-host-speed" "$rule" froude
 beside model_and_validate "$out/no-profile" "$rule" none absolute
 beside model_and_validate "$out/pooled-one-percent" pooled-one-percent none absolute
 # The term rule of sessions 13-63: the smallest set within one standard error of the best score.

@@ -68,13 +68,14 @@ model_and_validate() {
         [ -s "$dir/$name.err" ] && cat "$dir/$name.err" >&2
         rm -f "$dir/$name.err"
     }
-    # The host speed each prediction is at (predict --host-speed, session 75): the list and
+    # The host speed each prediction is at (predict --host-speed, sessions 75-76): the list and
     # table dam breaks, single runs of 8-30 s that span the host's spells (5-60 s), at the
-    # host's mean speed over the calibration, what one run's sum of steps pays; the others,
-    # validated as the median of three runs of about 1-7 s (scripts/model-node.sh, short_pass), at
-    # the median calibration run's speed, where such a median lands. A comparison model's own
-    # --host-speed (predict_extra) sets every prediction's.
-    local long=(--host-speed mean) short=(--host-speed median)
+    # host's mean speed over the calibration runs of their grid and setup, what one run's sum of
+    # steps pays; the others, validated as the median of three runs of about 1-7 s
+    # (scripts/model-node.sh, short_pass), at the median calibration run's speed, where such a
+    # median lands. HOST_SPEED_LONG: the long runs' rule of a comparison model (mean-pooled:
+    # session 75's). A comparison model's own --host-speed (predict_extra) sets every prediction's.
+    local long=(--host-speed "${HOST_SPEED_LONG:-mean}") short=(--host-speed median)
     if [[ " ${predict_extra[*]} " == *" --host-speed "* ]]; then long=() short=(); fi
     predict dambreak_s1_table "${long[@]}" --setup dambreak --grid table --scale 1 --ranks 1,2,3,4 \
         --steps "$v_steps"

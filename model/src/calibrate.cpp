@@ -1428,6 +1428,21 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
         return c;
     };
     const double compute_measured = total_compute();
+    // The same per grid, thread count and setup: the model's compute of a setup is that
+    // setup's level on that grid, so its host speed is that of the same runs (session 76).
+    using SetupKey = std::tuple<std::string, int, std::string>;
+    auto setup_compute = [&runs] {
+        std::map<SetupKey, std::pair<double, int>> c;
+        for (const auto &r : runs) {
+            auto &[s, n] = c[{r.config.grid, r.config.threads, r.config.setup}];
+            for (const auto &iv : r.intervals)
+                for (const auto &rk : iv.ranks)
+                    s += rk.compute_s();
+            ++n;
+        }
+        return c;
+    };
+    const auto setup_measured = setup_compute();
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const double reference =
             rule == GaugeReference::grid
@@ -1490,10 +1505,25 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
             {"value", compute_measured / compute_at_reference},
             {"method", "the calibration runs' compute as measured over their compute at the "
                        "reference speed: the host's mean speed over them against the median "
-                       "run's (below 1: faster on average, its fast spells). Reported, not "
-                       "applied: the model is at the median run's speed; at this mean, tried "
-                       "on 23 replayed jobs, the wall errors moved within the jobs' noise "
-                       "(model/NOTES.md, session 74)"}};
+                       "run's (below 1: faster on average, its fast spells); per_setup, the "
+                       "same over the runs of one grid, thread count and setup. predict "
+                       "--host-speed mean multiplies a prediction's compute by its setup's "
+                       "(session 76), mean-pooled by this one (session 75), median by neither "
+                       "(model/NOTES.md, sessions 74-76)"}};
+    if (out.contains("mean_factor")) {
+        json per = json::array();
+        const auto at_reference = setup_compute();
+        for (const auto &[key, measured] : setup_measured) {
+            const double ref = at_reference.at(key).first;
+            if (measured.first > 0 && ref > 0)
+                per.push_back({{"grid", std::get<0>(key)},
+                               {"threads", std::get<1>(key)},
+                               {"setup", std::get<2>(key)},
+                               {"runs", measured.second},
+                               {"value", measured.first / ref}});
+        }
+        out["mean_factor"]["per_setup"] = per;
+    }
     if (rule == GaugeReference::grid) {
         out["references"] = references;
         out["method"] = out["method"].get<std::string>() +

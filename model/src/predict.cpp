@@ -579,11 +579,14 @@ ColumnWeights balance_weights(const json &model, const std::string &setup, const
 namespace {
 
 // predict --host-speed: {"rule", "factor" on every compute time, "source"}. The model is at
-// the median calibration run's speed; mean needs calibrate's mean_factor (session 74 on), else
-// the factor stays 1 and the source says why.
-json host_speed_of(const json &model, const std::string &rule) {
-    if (rule != "mean" && rule != "median")
-        throw UsageError("--host-speed '" + rule + "': expected mean or median");
+// the median calibration run's speed. mean: the host's mean speed over the calibration runs of
+// the predicted grid, thread count and setup (mean_factor.per_setup, session 76), else over
+// every run (mean_factor.value, session 74 on), else 1; mean-pooled: over every run (session
+// 75's rule); the source says which.
+json host_speed_of(const json &model, const std::string &rule, const std::string &grid, int threads,
+                   const std::string &setup) {
+    if (rule != "mean" && rule != "mean-pooled" && rule != "median")
+        throw UsageError("--host-speed '" + rule + "': expected mean, mean-pooled or median");
     json out{{"rule", rule}, {"factor", 1.0}};
     if (rule == "median") {
         out["source"] = "the median calibration run's speed (the model's reference)";
@@ -597,12 +600,29 @@ json host_speed_of(const json &model, const std::string &rule) {
                                 : "the calibration runs as measured (no speed gauge applied)";
         return out;
     }
-    const double f = gauge.at("mean_factor").at("value").get<double>();
+    const json &mean = gauge.at("mean_factor");
+    std::string key = "speed_gauge.mean_factor";
+    double f = mean.at("value").get<double>();
+    out["source"] = "the host's mean speed over every calibration run (speed_gauge.mean_factor)";
+    if (rule == "mean") {
+        out["source"] = "the host's mean speed over every calibration run (speed_gauge."
+                        "mean_factor): the model has no calibration run of " +
+                        grid + " at " + std::to_string(threads) + " thread(s) on " + setup +
+                        (mean.contains("per_setup") ? "" : " (calibrated before session 76)");
+        for (const auto &row : mean.value("per_setup", json::array()))
+            if (row.at("grid") == grid && row.at("threads") == threads &&
+                row.at("setup") == setup) {
+                f = row.at("value").get<double>();
+                key = "speed_gauge.mean_factor.per_setup " + grid + "/" + std::to_string(threads) +
+                      "/" + setup;
+                out["source"] = "the host's mean speed over the calibration runs of " + grid +
+                                " at " + std::to_string(threads) + " thread(s) on " + setup +
+                                " (speed_gauge.mean_factor.per_setup)";
+            }
+    }
     if (!std::isfinite(f) || f <= 0)
-        throw UsageError("model speed_gauge.mean_factor " + std::to_string(f) +
-                         ": expected a positive factor");
+        throw UsageError("model " + key + " " + std::to_string(f) + ": expected a positive factor");
     out["factor"] = f;
-    out["source"] = "the host's mean speed over the calibration (speed_gauge.mean_factor)";
     return out;
 }
 
@@ -630,7 +650,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     c.sharing_line = req.time_sharing_overhead == "line";
     c.sharing_replay = req.time_sharing_overhead == "replay";
     c.replay_slice_s = req.replay_slice_s;
-    const json host_speed = host_speed_of(model, req.host_speed);
+    const json host_speed = host_speed_of(model, req.host_speed, req.grid, req.threads, req.setup);
     c.host_speed = host_speed.at("factor").get<double>();
     if (req.cores > 0)
         c.cores = req.cores;

@@ -216,13 +216,15 @@ int run(int argc, char **argv) {
         ->check(cli::Range(0.0, 1.0));
     pre->add_option("--host-speed", q.host_speed,
                     "The host speed the compute is predicted at: mean (the host's mean speed "
-                    "over the calibration, its fast spells in their share: what one run's sum "
-                    "of steps pays) or median (the median calibration run's speed, where the "
-                    "median of repeated short runs lands; sessions 50-74). The main job "
-                    "predicts its long single runs (the list and table dam breaks, 8-30 s) at "
-                    "the mean and the others at the median (model/NOTES.md, session 75)")
+                    "over the calibration runs of the predicted grid, thread count and setup, "
+                    "their fast spells in their share: what one run's sum of steps pays; "
+                    "session 76), mean-pooled (the same over every calibration run, session 75) "
+                    "or median (the median calibration run's speed, where the median of "
+                    "repeated short runs lands; sessions 50-74). The main job predicts its long "
+                    "single runs (the list and table dam breaks, 8-30 s) at the mean and the "
+                    "others at the median (model/NOTES.md, sessions 75-76)")
         ->capture_default_str()
-        ->check(cli::IsMember({"mean", "median"}));
+        ->check(cli::IsMember({"mean", "mean-pooled", "median"}));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

@@ -1042,17 +1042,25 @@ TEST(ModelCli, RanksOverNodesPayTheInterNodeClass) {
     EXPECT_TRUE(v["configurations"].empty()) << v["configurations"];
 }
 
-// predict --host-speed (session 75): mean puts every compute time at the host's mean speed over
-// the calibration (speed_gauge.mean_factor), and the gauge reference a run's own speed is read
-// against with it; median (the model's reference, sessions 50-74) leaves them; a model without
-// the factor predicts at the median and says so; a factor that is not positive is refused.
+// predict --host-speed (sessions 75-76): mean puts every compute time at the host's mean speed
+// over the calibration runs of the predicted grid, thread count and setup
+// (speed_gauge.mean_factor.per_setup), and the gauge reference a run's own speed is read against
+// with it; mean-pooled at the mean over every run (session 75); median (the model's reference,
+// sessions 50-74) leaves them; a model without per-setup factors falls back on the pooled one,
+// one without any predicts at the median, and each says so; a factor that is not positive is
+// refused.
 TEST(ModelCli, HostSpeedMeanScalesEveryComputeByTheMeanFactor) {
     const auto &f = fixture();
     auto model = load(f.model);
-    constexpr double reference = 5e-5, factor = 0.9;
+    // The pooled factor 0.9; the table dam breaks' own runs 0.8 (session 76), the still tanks'
+    // 1.3 (another setup: not this prediction's).
+    constexpr double reference = 5e-5, pooled = 0.9, factor = 0.8;
+    const nlohmann::json per_setup = {
+        {{"grid", "table"}, {"threads", 1}, {"setup", "dambreak"}, {"runs", 2}, {"value", factor}},
+        {{"grid", "table"}, {"threads", 1}, {"setup", "still"}, {"runs", 2}, {"value", 1.3}}};
     model["speed_gauge"] = {{"applied", true},
                             {"reference_cpu_s_per_sample", reference},
-                            {"mean_factor", {{"value", factor}}}};
+                            {"mean_factor", {{"value", pooled}, {"per_setup", per_setup}}}};
     auto write = [&](const nlohmann::json &m, const std::string &name) {
         const auto path = f.dir / ("model_speed_" + name + ".json");
         std::ofstream(path) << m.dump();
@@ -1075,6 +1083,7 @@ TEST(ModelCli, HostSpeedMeanScalesEveryComputeByTheMeanFactor) {
     EXPECT_EQ(pm["host_speed"]["factor"], 1.0);
     EXPECT_EQ(pa["host_speed"]["rule"], "mean"); // the default: what one run's sum pays
     EXPECT_EQ(pa["host_speed"]["factor"], factor);
+    EXPECT_NE(pa["host_speed"]["source"].get<std::string>().find("per_setup"), std::string::npos);
     ASSERT_EQ(pm["configurations"].size(), pa["configurations"].size());
     for (std::size_t k = 0; k < pm["configurations"].size(); ++k) {
         const auto &cm = pm["configurations"][k], &ca = pa["configurations"][k];
@@ -1085,6 +1094,24 @@ TEST(ModelCli, HostSpeedMeanScalesEveryComputeByTheMeanFactor) {
         EXPECT_NEAR(cm["speed_gauge_reference_cpu_s"].get<double>(), reference, 1e-15);
         EXPECT_NEAR(ca["speed_gauge_reference_cpu_s"].get<double>(), factor * reference, 1e-15);
     }
+    // mean-pooled (session 75): every calibration run's mean speed.
+    const auto [pooled_run, pooled_out] =
+        predict(with_factor, " --host-speed mean-pooled", "pooled");
+    ASSERT_EQ(pooled_run.code, 0) << pooled_run.err;
+    const auto pp = load(pooled_out);
+    EXPECT_EQ(pp["host_speed"]["factor"], pooled);
+    EXPECT_NEAR(pp["configurations"][0]["totals"]["compute_s"].get<double>(),
+                pooled * pm["configurations"][0]["totals"]["compute_s"].get<double>(),
+                1e-9 * pm["configurations"][0]["totals"]["compute_s"].get<double>());
+    // Calibrated in sessions 74-75 (no per_setup): mean falls back on the pooled factor, said so.
+    auto pooled_only = model;
+    pooled_only["speed_gauge"]["mean_factor"].erase("per_setup");
+    const auto [p75, p75_out] = predict(write(pooled_only, "p75"), "", "p75");
+    ASSERT_EQ(p75.code, 0) << p75.err;
+    const auto p75j = load(p75_out);
+    EXPECT_EQ(p75j["host_speed"]["factor"], pooled);
+    EXPECT_NE(p75j["host_speed"]["source"].get<std::string>().find("before session 76"),
+              std::string::npos);
     // Calibrated before session 74 (no mean_factor): at the median run's speed, said so.
     auto old = model;
     old["speed_gauge"].erase("mean_factor");
@@ -1098,10 +1125,17 @@ TEST(ModelCli, HostSpeedMeanScalesEveryComputeByTheMeanFactor) {
     // A factor that is not positive, and a rule that does not exist: exit 2, no file.
     auto bad = model;
     bad["speed_gauge"]["mean_factor"]["value"] = -0.5;
-    const auto [negative, negative_out] = predict(write(bad, "bad"), "", "bad");
+    const auto [negative, negative_out] =
+        predict(write(bad, "bad"), " --host-speed mean-pooled", "bad");
     EXPECT_EQ(negative.code, 2);
     EXPECT_NE(negative.err.find("mean_factor"), std::string::npos) << negative.err;
     EXPECT_FALSE(fs::exists(negative_out));
+    auto bad_setup = model;
+    bad_setup["speed_gauge"]["mean_factor"]["per_setup"][0]["value"] = 0.0;
+    const auto [zero, zero_out] = predict(write(bad_setup, "zero"), "", "zero");
+    EXPECT_EQ(zero.code, 2);
+    EXPECT_NE(zero.err.find("per_setup table/1/dambreak"), std::string::npos) << zero.err;
+    EXPECT_FALSE(fs::exists(zero_out));
     const auto [unknown, unknown_out] = predict(with_factor, " --host-speed fastest", "unknown");
     EXPECT_EQ(unknown.code, 2);
     EXPECT_NE(unknown.err.find("fastest"), std::string::npos) << unknown.err;

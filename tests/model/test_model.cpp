@@ -1723,6 +1723,37 @@ TEST(Calibrate, GridGaugeReferenceNormalisesEachGridByItsOwnRuns) {
     EXPECT_TRUE(gauge_reference_for(nlohmann::json{{"applied", false}}, "table", 1).is_null());
 }
 
+// The host's mean speed per grid, thread count and setup (mean_factor.per_setup, session 76):
+// each group's compute as measured over the same at the reference speed. Two table dam breaks
+// ran fast (gauge 0.8 and 1.0) and two table still tanks at 1.0 and 1.2: the pooled median
+// reference is 1.0, the dam breaks' factor 2 / (1/0.8 + 1) = 0.889, the still tanks'
+// 2 / (1 + 1/1.2) = 1.091, and the pooled one 4 / (1.25 + 1 + 1 + 0.833) = 0.981.
+TEST(Calibrate, MeanFactorPerSetupIsEachSetupsOwnRunsMeanSpeed) {
+    auto run = [](const std::string &setup, double gauge) {
+        SphRun r = measured_run(2.0);
+        r.config.setup = setup;
+        auto &rk = r.intervals[0].ranks[0];
+        rk.gauge_cpu_s = 20 * 40e-6 * gauge;
+        rk.gauge_samples = 20;
+        return r;
+    };
+    std::vector<SphRun> runs{run("dambreak", 0.8), run("dambreak", 1.0), run("still", 1.0),
+                             run("still", 1.2)};
+    const auto g = speed_normalise(runs, SpeedGauge::run, GaugeReference::pooled);
+    ASSERT_TRUE(g["mean_factor"].contains("per_setup"));
+    EXPECT_NEAR(g["mean_factor"]["value"].get<double>(), 4.0 / (1.25 + 1 + 1 + 1 / 1.2), 1e-12);
+    std::map<std::string, double> by_setup;
+    for (const auto &row : g["mean_factor"]["per_setup"]) {
+        EXPECT_EQ(row["grid"], "table");
+        EXPECT_EQ(row["threads"], 1);
+        EXPECT_EQ(row["runs"], 2);
+        by_setup[row["setup"].get<std::string>()] = row["value"].get<double>();
+    }
+    ASSERT_EQ(by_setup.size(), 2U);
+    EXPECT_NEAR(by_setup["dambreak"], 2.0 / (1 / 0.8 + 1), 1e-12);
+    EXPECT_NEAR(by_setup["still"], 2.0 / (1 + 1 / 1.2), 1e-12);
+}
+
 // With --speed-gauge interval a host that slows down within a run is taken out interval by
 // interval: a run of six intervals whose last three ran 1.5 times slower (their times and
 // their gauge) comes out flat at the reference speed, where one factor per run leaves the
