@@ -1417,19 +1417,10 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
     elasticity["between_repeats"] = between;
     json list = json::array();
     std::vector<double> logs;
-    // The calibration's compute as measured and at the reference speed: their ratio is the
-    // host's mean speed over it against the median run's.
-    auto total_compute = [&runs] {
-        double c = 0;
-        for (const auto &r : runs)
-            for (const auto &iv : r.intervals)
-                for (const auto &rk : iv.ranks)
-                    c += rk.compute_s();
-        return c;
-    };
-    const double compute_measured = total_compute();
-    // The same per grid, thread count and setup: the model's compute of a setup is that
-    // setup's level on that grid, so its host speed is that of the same runs (session 76).
+    // The calibration's compute as measured and at the reference speed, per grid, thread count
+    // and setup (and the runs): their ratio is the host's mean speed over those runs against
+    // the median run's. Per setup because the model's compute of a setup is that setup's level
+    // on that grid, so its host speed is that of the same runs (session 76); pooled, session 75.
     using SetupKey = std::tuple<std::string, int, std::string>;
     auto setup_compute = [&runs] {
         std::map<SetupKey, std::pair<double, int>> c;
@@ -1442,7 +1433,14 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
         }
         return c;
     };
+    auto total = [](const std::map<SetupKey, std::pair<double, int>> &c) {
+        double s = 0;
+        for (const auto &[key, v] : c)
+            s += v.first;
+        return s;
+    };
     const auto setup_measured = setup_compute();
+    const double compute_measured = total(setup_measured);
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const double reference =
             rule == GaugeReference::grid
@@ -1499,7 +1497,8 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
            {"log_sd", logs.size() > 1 ? std::sqrt(ss / static_cast<double>(logs.size() - 1)) : 0.0},
            {"runs", list}};
     out["elasticity"] = elasticity;
-    const double compute_at_reference = total_compute();
+    const auto setup_at_reference = setup_compute();
+    const double compute_at_reference = total(setup_at_reference);
     if (compute_measured > 0 && compute_at_reference > 0)
         out["mean_factor"] = {
             {"value", compute_measured / compute_at_reference},
@@ -1512,9 +1511,8 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
                        "(model/NOTES.md, sessions 74-76)"}};
     if (out.contains("mean_factor")) {
         json per = json::array();
-        const auto at_reference = setup_compute();
         for (const auto &[key, measured] : setup_measured) {
-            const double ref = at_reference.at(key).first;
+            const double ref = setup_at_reference.at(key).first;
             if (measured.first > 0 && ref > 0)
                 per.push_back({{"grid", std::get<0>(key)},
                                {"threads", std::get<1>(key)},

@@ -265,9 +265,11 @@ struct PredictRequest {
     // share least wrong on either (model/NOTES.md, session 73; tuned).
     double memory_order_carry = 0.5;
     // The host speed the compute is predicted at: mean (the host's mean speed over the
-    // calibration, calibrate's speed_gauge.mean_factor: what one run's sum of steps pays, its
-    // spells in their share) or median (the median calibration run's speed, which the median of
-    // repeated short runs lands on; the model of sessions 50-74). model/NOTES.md, session 75.
+    // calibration runs of the predicted grid, thread count and setup, calibrate's
+    // speed_gauge.mean_factor.per_setup: what one run's sum of steps pays, its spells in their
+    // share; session 76), mean-pooled (the same over every calibration run, session 75) or
+    // median (the median calibration run's speed, which the median of repeated short runs
+    // lands on; the model of sessions 50-74). model/NOTES.md, sessions 75-76.
     std::string host_speed = "mean";
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
