@@ -21,7 +21,10 @@ rank-intervals within the cores, at each run's own speed: the median of validate
 cost_per_interaction), cost-first-third and cost-last-third (the same over the first and last
 thirds of each run), or cost-trend (ln of the last third's over the first third's: how much more
 the cost is predicted to rise through a run than it does; model/NOTES.md, session 73). The cost
-terms are at each run's own speed already and are not given for time-shared runs.
+terms are at each run's own speed already and are not given for time-shared runs. rank-compute:
+each busy rank of the multi-rank runs apart (a row per rank), its compute at its own core's
+speed (validate's per_rank error_at_own_speed, from session 77): how the model shares the cost
+between the slabs, which the wall time and the pooled cost hide.
 --json OUT: the same as a JSON report (schema, this checkout's commit, each input's commit,
 host, build and topology).
 """
@@ -52,7 +55,7 @@ def configuration_key(c):
             int(c["steps"]))
 
 
-TERMS = ("wall", "cost", "cost-first-third", "cost-last-third", "cost-trend")
+TERMS = ("wall", "cost", "cost-first-third", "cost-last-third", "cost-trend", "rank-compute")
 
 
 def cost_error_of(c, term):
@@ -88,6 +91,20 @@ def error_of(c, own_speed, path, term="wall"):
         raise InputError(f"{path}: a configuration without a usable {term} error ({e})")
 
 
+def rank_errors_of(c, path):
+    """(rank, ln(predicted / measured)) of each busy rank of a multi-rank configuration at its
+    own core's speed (validate's phases.compute.per_rank[].error_at_own_speed, session 77);
+    none from a report before it."""
+    try:
+        if c["ranks"] < 2:
+            return []
+        ranks = c["phases"]["compute"].get("per_rank") or []
+        return [(r, math.log1p(x["error_at_own_speed"])) for r, x in enumerate(ranks)
+                if x.get("busy") and x.get("error_at_own_speed") is not None]
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"{path}: a configuration without a usable per-rank compute ({e})")
+
+
 def summarise(reports, own_speed, min_jobs, term="wall"):
     errors = {}
     for path, doc in reports:
@@ -96,6 +113,10 @@ def summarise(reports, own_speed, min_jobs, term="wall"):
                 key = configuration_key(c)
             except KeyError as e:
                 raise InputError(f"{path}: a configuration without {e}")
+            if term == "rank-compute":
+                for r, e in rank_errors_of(c, path):
+                    errors.setdefault(key[:3] + (f"{key[3]} rank {r}",) + key[4:], []).append(e)
+                continue
             e = error_of(c, own_speed, path, term)
             if e is not None:
                 errors.setdefault(key, []).append(e)
@@ -136,7 +157,10 @@ def print_table(summary, reports, own_speed, min_jobs, term="wall"):
                     "run's own speed)",
             "cost-first-third": "Cost per interaction error over each run's first third",
             "cost-last-third": "Cost per interaction error over each run's last third",
-            "cost-trend": "Cost per interaction error, last third over first third of each run"}[term]
+            "cost-trend": "Cost per interaction error, last third over first third of each run",
+            "rank-compute": "Compute error of each busy rank of the multi-rank runs at its own "
+                            "core's speed (its own gauge; on a shared core a sample may hold the "
+                            "other rank's turn)"}[term]
     print(f"{what} over {len(reports)} validation reports "
           f"(mean of ln(predicted / measured), shown as a percentage; systematic: |t| >= 2 over "
           f">= {min_jobs} reports)")
@@ -164,8 +188,8 @@ def main():
     ap.add_argument("--own-speed", action="store_true",
                     help="the errors at each run's own host speed (default: as predicted)")
     ap.add_argument("--term", default="wall",
-                    help="which error: wall (default), cost, cost-first-third, cost-last-third or "
-                         "cost-trend (see above)")
+                    help="which error: wall (default), cost, cost-first-third, cost-last-third, "
+                         "cost-trend or rank-compute (see above)")
     ap.add_argument("--min-jobs", type=int, default=3,
                     help="reports a configuration needs before it can be marked systematic (default 3)")
     ap.add_argument("--json", metavar="OUT", help="also write the summary as JSON to OUT")
@@ -176,8 +200,8 @@ def main():
         if args.term not in TERMS:
             raise InputError(f"--term {args.term!r}: expected one of {', '.join(TERMS)}")
         if args.own_speed and args.term != "wall":
-            raise InputError(f"--own-speed with --term {args.term}: the cost terms are at each "
-                             "run's own speed already; --own-speed applies to --term wall")
+            raise InputError(f"--own-speed with --term {args.term}: the cost and rank terms are "
+                             "at each run's own speed already; --own-speed applies to --term wall")
         if len(args.reports) < 2:
             raise InputError(f"{len(args.reports)} validation report given: expected 2 or more "
                              f"(one job cannot tell bias from noise)")

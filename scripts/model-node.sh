@@ -401,6 +401,10 @@ val_reports=("$runs"/val_*.json)
 # and the same runs go through levelled-one-se beside.
 rule=levelled-best
 model_and_validate "$out" "$rule" froude
+# The model predicting its own calibration runs (model-set.sh, in_sample): the fit's form
+# apart from its extrapolation, in validation.md.
+stage "the model on its own calibration runs (in-sample)"
+in_sample "$out"
 # The comparison models below only read the runs: nothing is timed any more, so they run side
 # by side, as many at once as there are cores (one after another they took 16 s of the job on
 # the VM's Intel host, session 45). Each one's arrays are copied when it starts.

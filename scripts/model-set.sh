@@ -104,3 +104,39 @@ model_and_validate() {
     "$build/bin/sphmodel" validate --prediction "$dir"/prediction_*.json \
         --measured "${val_reports[@]}" --out "$dir/validation.json"
 }
+
+# in_sample DIR: the model in DIR/model.json predicting its own calibration runs, each
+# configuration it ran (setup, grid, scale, ranks, threads, length, interval) at the model's
+# reference speed, validated against those runs: DIR/in-sample/validation.json. What the fit
+# cannot reproduce even where it was fitted (validate's errors at each run's and each rank's own
+# speed) is the model's form, not the extrapolation to runs it never saw (model/NOTES.md,
+# session 77). Nothing is run; about a second.
+in_sample() {
+    local dir=$1 key
+    local ins="$dir/in-sample"
+    rm -rf "$ins"
+    mkdir -p "$ins"
+    # One line per calibration configuration: its predict options, the rank counts joined.
+    /usr/bin/python3 - "${cal_reports[@]}" >"$ins/configurations.txt" <<'PY'
+import json, sys
+groups = {}
+for path in sys.argv[1:]:
+    with open(path) as f:
+        c = json.load(f)["config"]
+    key = (c["setup"], c["grid"], c["scale"], c["threads"], c["steps"], c["interval"],
+           c["delta"], c["dt"], bool(c.get("overlap")))
+    groups.setdefault(key, set()).add(int(c["ranks"]))
+for (setup, grid, scale, threads, steps, interval, delta, dt, overlap), ranks in sorted(groups.items()):
+    print(f"{setup}_{grid}_s{scale:g}_t{threads}_n{steps}{'_overlap' if overlap else ''}",
+          f"--setup {setup} --grid {grid} --scale {scale!r} --threads {threads} --steps {steps}",
+          f"--interval {interval} --delta {delta!r} --dt {dt!r}{' --overlap' if overlap else ''}",
+          "--ranks " + ",".join(str(r) for r in sorted(ranks)))
+PY
+    while read -r key opts; do
+        # shellcheck disable=SC2086 # opts is the option list written above
+        "$build/bin/sphmodel" predict --model "$dir/model.json" --host-speed median $opts \
+            --out "$ins/prediction_$key.json" >/dev/null
+    done <"$ins/configurations.txt"
+    "$build/bin/sphmodel" validate --prediction "$ins"/prediction_*.json \
+        --measured "${cal_reports[@]}" --out "$ins/validation.json" >"$ins/validation.txt"
+}

@@ -403,6 +403,44 @@ def summary_lines(validation, args):
     return lines
 
 
+def in_sample_lines(d):
+    """validation.md's paragraph on the model predicting its own calibration runs
+    (scripts/model-set.sh, in_sample; session 77), or nothing without DIR/in-sample."""
+    path = os.path.join(d, "in-sample", "validation.json")
+    if not os.path.exists(path):
+        return []
+    v = load(path)
+    s = v.get("summary") or {}
+    wall, own = s.get("wall_abs_error"), s.get("wall_abs_error_speed_corrected")
+    if not wall:
+        return []
+    text = ("In sample (the model predicting its own calibration runs, each configuration at the "
+            "model's reference speed, in-sample/validation.json): what the fit cannot reproduce even "
+            "where it was fitted is its form, not its extrapolation. Wall |error| median "
+            f"{100 * wall['median']:.1f} %, max {100 * wall['max']:.1f} % over {wall['count']} runs")
+    if own:
+        text += (f"; at each run's own host speed median {100 * own['median']:.1f} %, max "
+                 f"{100 * own['max']:.1f} %")
+    by_config = {}  # the repeats of a configuration together: their median error at own speed
+    for c in v.get("configurations", []):
+        e = (c.get("speed_gauge") or {}).get("wall_error")
+        if e is not None:
+            shared = " (shared)" if c.get("oversubscribed") else ""
+            by_config.setdefault(f"{c['setup']} {c['grid']} s{c['scale']:g} "
+                                 f"{c['ranks']} x {c['threads']}{shared}", []).append(e)
+    if by_config:
+        rows = sorted(((abs(statistics.median(es)), statistics.median(es), name, len(es))
+                       for name, es in by_config.items()), reverse=True)
+        text += ("; the configurations furthest off at own speed (median of their runs): "
+                 + ", ".join(f"{name} {100 * e:+.1f} % ({n} runs)" for _, e, name, n in rows[:3]))
+    x = s.get("compute_per_busy_rank_at_own_speed")
+    if x:
+        text += (f". Each busy rank's compute at its own core's speed within the cores: error median "
+                 f"{100 * x['median_error']:+.1f} %, max |error| {100 * x['max_abs_error']:.1f} % over "
+                 f"{x['count']} ranks")
+    return [text + "."]
+
+
 def markdown(model, validation, args, out):
     replaying = sharing_in_use(args.dir) == "replay"
     lines = ["# Validation of the SPH runtime model", ""]
@@ -1093,6 +1131,19 @@ def markdown(model, validation, args, out):
             text += (". With every rank at the whole run's memory order (one-order-per-run/): "
                      + " and ".join(fparts))
         lines.append(text + ".")
+    # The same at each rank's own core's speed (session 77): the host's speed out, rank by rank.
+    own = [(w, s.get(k)) for w, k in (("within the cores", "compute_per_busy_rank_at_own_speed"),
+                                      ("time-shared", "compute_per_busy_rank_at_own_speed_time_shared"))
+           if s.get(k)]
+    if own:
+        lines.append("The same at each rank's own core's speed (the prediction times the rank's own "
+                     "speed gauge over the reference, so the two vCPUs' speeds are out; on a shared "
+                     "core a gauge sample may hold the other rank's turn): "
+                     + "; ".join(f"{w}: error median {100 * x['median_error']:+.1f} %, |error| median "
+                                 f"{100 * x['median_abs_error']:.1f} %, max {100 * x['max_abs_error']:.1f} % "
+                                 f"over {x['count']} ranks" for w, x in own)
+                     + " (per rank over jobs: scripts/model-bias.py --term rank-compute).")
+    lines += in_sample_lines(args.dir)
     # The workload term alone (session 57): each busy rank-interval's field particles as the
     # re-cut trace gave them against the run's.
     if s.get("field_per_busy_rank_interval"):

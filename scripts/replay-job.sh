@@ -77,6 +77,7 @@ val_reports=("$runs"/val_*.json)
 # PREDICT_EXTRA: more predict options (e.g. --memory-order-time froude for a job whose list
 # and table records end before the validation's simulated time, sessions 55-58).
 model_and_validate "$out" "${REPLAY_RULE:-levelled-best}" froude relative replay "${PREDICT_EXTRA:-}"
+in_sample "$out"
 /usr/bin/python3 - "$out/validation.json" "${#cal_reports[@]}" "${cal_reports[@]}" \
     -- "${val_reports[@]}" <<'PY'
 import json, sys

@@ -166,6 +166,14 @@ double SphRun::gauge_per_sample_s() const {
     return pool.mean(0.0);
 }
 
+double SphRun::rank_gauge_per_sample_s(std::size_t rank) const {
+    GaugePool pool;
+    for (const auto &iv : intervals)
+        if (rank < iv.ranks.size())
+            pool.add(iv.ranks[rank]);
+    return pool.mean(0.0);
+}
+
 std::optional<SphRun::CoreLatency> SphRun::core_latency(double far_s) const {
     CoreLatency c;
     double total = 0, far = 0;

@@ -1613,6 +1613,13 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
         sorted["cost_per_interaction"] = {{"median_error", 0.06},
                                           {"first_third", {{"median_error", 0.02}}},
                                           {"last_third", {{"median_error", last}}}};
+        // --term rank-compute: its back rank 8 % high and its front rank 5 % low at their own
+        // cores' speeds; a third entry, not busy, stays out.
+        auto at_own = [&](double bias) { return std::exp(std::log(bias) + noise[job] / 2) - 1; };
+        sorted["phases"]["compute"]["per_rank"] = {
+            {{"busy", true}, {"error_at_own_speed", at_own(1.08)}},
+            {{"busy", true}, {"error_at_own_speed", at_own(0.95)}},
+            {{"busy", false}, {"error_at_own_speed", 0.5}}};
         const nlohmann::json doc{{"benchmark", "sphmodel-validation"},
                                  {"schema", 1},
                                  {"git_commit", std::to_string(job)},
@@ -1651,6 +1658,17 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
     EXPECT_EQ(trend["term"], "cost-trend");
     EXPECT_NEAR(trend["configurations"][0]["mean_error"].get<double>(), 1.1 / 1.02 - 1, 0.005);
     EXPECT_TRUE(trend["configurations"][0]["systematic"].get<bool>());
+    // Each busy rank apart: a row per rank of the multi-rank configuration, the 1-rank one out.
+    const sphperf::testing::Run rr =
+        run(script + reports + " --term rank-compute --json " + out.string());
+    ASSERT_EQ(rr.code, 0) << rr.err;
+    const auto per_rank = load(out);
+    ASSERT_EQ(per_rank["configurations"].size(), 2u);
+    EXPECT_EQ(per_rank["configurations"][0]["ranks_x_threads"], "2 x 1 rank 0");
+    EXPECT_NEAR(per_rank["configurations"][0]["mean_error"].get<double>(), 0.08, 0.005);
+    EXPECT_EQ(per_rank["configurations"][1]["ranks_x_threads"], "2 x 1 rank 1");
+    EXPECT_NEAR(per_rank["configurations"][1]["mean_error"].get<double>(), -0.05, 0.005);
+    EXPECT_TRUE(per_rank["configurations"][1]["systematic"].get<bool>());
 
     std::ofstream(dir / "malformed.json") << "{\"benchmark\": ";
     const std::string first = (dir / "validation_0.json").string();
@@ -1662,6 +1680,7 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
          {first + " " + reference_vm + "model.json", "not a sphmodel validation report"},
          {reports + " --min-jobs 1", "--min-jobs 1"},
          {reports + " --term cost --own-speed", "--own-speed with --term cost"},
+         {reports + " --term rank-compute --own-speed", "--own-speed with --term rank-compute"},
          {reports + " --term costs", "--term 'costs': expected one of wall, cost"}});
     fs::remove_all(dir);
 }

@@ -1295,6 +1295,64 @@ TEST(Validate, ReportsEachBusyRanksComputeApart) {
     EXPECT_EQ(v["summary"]["compute_per_busy_rank_abs_error_time_shared"]["count"], 2);
 }
 
+// Each busy rank's compute at its own core's speed (session 77): the two vCPUs run at different
+// speeds in spells, so the run's pooled gauge puts both ranks at one speed. Planted: rank 0 ran
+// at 1.2x the reference (its gauge), rank 1 at 0.8x; at their own speeds the predictions are
+// -10 % and -20 % off, where the pooled gauge would tell another story for each.
+TEST(Validate, ReportsEachBusyRanksComputeAtItsOwnCoresSpeed) {
+    auto m = measured_run(1.0);
+    m.config.ranks = 3;
+    RankStats back = m.intervals[0].ranks[0], front = back, dry = back;
+    back.timers = {{"comp_s", 1.0}, {"comm_s", 0}, {"wait_s", 0}};
+    front.timers = {{"comp_s", 0.5}, {"comm_s", 0}, {"wait_s", 0}};
+    dry.timers = {{"comp_s", 0.01}, {"comm_s", 0}, {"wait_s", 0}};
+    constexpr double reference = 3e-5;
+    back.gauge_cpu_s = 10 * 1.2 * reference;
+    front.gauge_cpu_s = 10 * 0.8 * reference;
+    dry.gauge_cpu_s = 10 * reference;
+    back.gauge_samples = front.gauge_samples = dry.gauge_samples = 10;
+    m.intervals[0].ranks = {back, front, dry};
+    m.placement_pus = {0, 1, 0};
+    auto p = prediction(1.0);
+    auto &c = p["configurations"][0];
+    c["ranks"] = 3;
+    c["speed_gauge_reference_cpu_s"] = reference;
+    const nlohmann::json one = c["per_rank"][0];
+    c["per_rank"] = {one, one, one};
+    for (auto [r, s] : {std::pair{0, 0.75}, {1, 0.5}, {2, 0.01}})
+        c["per_rank"][r]["compute_s"] = s;
+    bool exceeded = false;
+    auto v = validate({}, {p}, {m}, {}, exceeded);
+    ASSERT_EQ(v["configurations"].size(), 1u);
+    const auto &ranks = v["configurations"][0]["phases"]["compute"]["per_rank"];
+    ASSERT_EQ(ranks.size(), 3u);
+    EXPECT_NEAR(ranks[0]["gauge_factor"].get<double>(), 1.2, 1e-12);
+    EXPECT_NEAR(ranks[1]["gauge_factor"].get<double>(), 0.8, 1e-12);
+    EXPECT_NEAR(ranks[0]["error_at_own_speed"].get<double>(), -0.1, 1e-12);
+    EXPECT_NEAR(ranks[1]["error_at_own_speed"].get<double>(), -0.2, 1e-12);
+    // As measured (no gauge) the same ranks read -25 % and 0 %.
+    EXPECT_NEAR(ranks[0]["error"].get<double>(), -0.25, 1e-12);
+    EXPECT_NEAR(ranks[1]["error"].get<double>(), 0.0, 1e-12);
+    // The rank under a tenth of the compute carries its factor but stays out of the summary.
+    EXPECT_FALSE(ranks[2]["busy"].get<bool>());
+    const auto &sm = v["summary"]["compute_per_busy_rank_at_own_speed"];
+    ASSERT_FALSE(sm.is_null());
+    EXPECT_EQ(sm["count"], 2);
+    EXPECT_NEAR(sm["median_error"].get<double>(), -0.15, 1e-12);
+    EXPECT_NEAR(sm["max_abs_error"].get<double>(), 0.2, 1e-12);
+    EXPECT_TRUE(v["summary"]["compute_per_busy_rank_at_own_speed_time_shared"].is_null());
+    // Time-shared runs are summarised apart; a prediction without a gauge reference gives none.
+    c["oversubscribed"] = true;
+    v = validate({}, {p}, {m}, {}, exceeded);
+    EXPECT_TRUE(v["summary"]["compute_per_busy_rank_at_own_speed"].is_null());
+    EXPECT_EQ(v["summary"]["compute_per_busy_rank_at_own_speed_time_shared"]["count"], 2);
+    c.erase("speed_gauge_reference_cpu_s");
+    v = validate({}, {p}, {m}, {}, exceeded);
+    EXPECT_FALSE(
+        v["configurations"][0]["phases"]["compute"]["per_rank"][0].contains("error_at_own_speed"));
+    EXPECT_TRUE(v["summary"]["compute_per_busy_rank_at_own_speed_time_shared"].is_null());
+}
+
 // The memory order each busy rank was predicted at (descents per interaction of its columns)
 // and the field particles it was predicted to hold, against the run's: rank 0 predicted 10 %
 // high (field 5 % high), rank 1 20 % low (field exact), rank 2 (a few front particles, under a

@@ -86,6 +86,9 @@ struct SphRun {
     // The speed gauge's CPU seconds per sample over the whole run: each rank-interval's mean
     // weighted by its compute (0: no samples).
     double gauge_per_sample_s() const;
+    // The same over one rank's rank-intervals: the speed of the core that rank ran on (0: no
+    // samples, or no such rank).
+    double rank_gauge_per_sample_s(std::size_t rank) const;
     // The core latency gauge over the whole run: the mean round trip of its samples and the
     // share of them in rank-intervals whose mean is above `far_s` (the far mode); nullopt
     // where the run has no sample.
