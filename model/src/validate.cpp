@@ -553,6 +553,12 @@ std::string fmt(const char *f, auto... v) {
 double d(const json &j) {
     return j.is_number() ? j.get<double>() : 0.0;
 }
+// A signed summary (signed_summary above) as the human table's lines give it.
+std::string signed_figures(const json &x) {
+    return fmt("error median %+.1f%%, |error| median %.1f%%, max %.1f%% over %d",
+               100 * d(x.at("median_error")), 100 * d(x.at("median_abs_error")),
+               100 * d(x.at("max_abs_error")), x.at("count").get<int>());
+}
 } // namespace
 
 std::string calibration_table(const json &m) {
@@ -794,28 +800,20 @@ std::string validation_table(const json &v) {
          {std::pair{"compute_per_busy_rank_at_own_speed", "within the cores"},
           std::pair{"compute_per_busy_rank_at_own_speed_time_shared", "time-shared"}})
         if (sm.contains(key) && !sm.at(key).is_null())
-            s += fmt("  the same at each rank's own core's speed (its own gauge) %s: error median "
-                     "%+.1f%%, |error| median %.1f%%, max %.1f%% over %d ranks\n",
-                     where, 100 * d(sm.at(key).at("median_error")),
-                     100 * d(sm.at(key).at("median_abs_error")),
-                     100 * d(sm.at(key).at("max_abs_error")), sm.at(key).at("count").get<int>());
+            s += fmt("  the same at each rank's own core's speed (its own gauge) %s: %s ranks\n",
+                     where, signed_figures(sm.at(key)).c_str());
     if (sm.contains("field_per_busy_rank_interval") &&
-        !sm.at("field_per_busy_rank_interval").is_null()) {
-        const auto &f = sm.at("field_per_busy_rank_interval");
+        !sm.at("field_per_busy_rank_interval").is_null())
         s += fmt("  field particles of each busy rank-interval (the trace re-cut at the same "
-                 "Froude time): error median %+.1f%%, |error| median %.1f%%, max %.1f%% over %d\n",
-                 100 * d(f.at("median_error")), 100 * d(f.at("median_abs_error")),
-                 100 * d(f.at("max_abs_error")), f.at("count").get<int>());
-    }
+                 "Froude time): %s\n",
+                 signed_figures(sm.at("field_per_busy_rank_interval")).c_str());
     for (const auto &[key, where] :
          {std::pair{"descents_per_interaction_per_busy_rank_interval", "equal slabs"},
           std::pair{"descents_per_interaction_per_busy_rank_interval_balanced", "balanced slabs"}})
         if (sm.contains(key) && !sm.at(key).is_null())
-            s += fmt("  memory order (descents per interaction) of each busy rank-interval, %s: "
-                     "error median %+.1f%%, |error| median %.1f%%, max %.1f%% over %d\n",
-                     where, 100 * d(sm.at(key).at("median_error")),
-                     100 * d(sm.at(key).at("median_abs_error")),
-                     100 * d(sm.at(key).at("max_abs_error")), sm.at(key).at("count").get<int>());
+            s += fmt(
+                "  memory order (descents per interaction) of each busy rank-interval, %s: %s\n",
+                where, signed_figures(sm.at(key)).c_str());
     if (const char *key = "cost_per_interaction_per_busy_rank_interval";
         sm.contains(key) && !sm.at(key).is_null()) {
         // The thirds' biases beside the whole's: the cost's course through the runs.

@@ -1258,11 +1258,16 @@ TEST(Validate, FlagsAPlantedTwentyPercentError) {
     EXPECT_EQ(v["unmatched_runs"].size(), 1u);
 }
 
-// Each busy rank's compute apart from their sum (session 56): ranks predicted +10 % and -20 %
-// sum to -0.7 %, which the configuration's compute error alone would call right. A rank with
-// under a tenth of the compute is listed, not summarised; time-shared runs are summarised apart.
-TEST(Validate, ReportsEachBusyRanksComputeApart) {
-    auto m = measured_run(1.0);
+// A 3-rank run (a back rank measured 1 s of compute, a front rank 0.5 s, a dry one 0.01 s; the
+// second on core 1, the others sharing core 0) and its prediction, each rank's compute given.
+namespace {
+struct ThreeRanks {
+    SphRun measured;
+    nlohmann::json predicted;
+};
+ThreeRanks three_ranks(std::array<double, 3> predicted_s) {
+    ThreeRanks t{measured_run(1.0), prediction(1.0)};
+    auto &m = t.measured;
     m.config.ranks = 3;
     RankStats back = m.intervals[0].ranks[0], front = back, dry = back;
     back.timers = {{"comp_s", 1.0}, {"comm_s", 0}, {"wait_s", 0}};
@@ -1270,13 +1275,22 @@ TEST(Validate, ReportsEachBusyRanksComputeApart) {
     dry.timers = {{"comp_s", 0.01}, {"comm_s", 0}, {"wait_s", 0}};
     m.intervals[0].ranks = {back, front, dry};
     m.placement_pus = {0, 1, 0};
-    auto p = prediction(1.0);
-    auto &c = p["configurations"][0];
+    auto &c = t.predicted["configurations"][0];
     c["ranks"] = 3;
     const nlohmann::json one = c["per_rank"][0];
     c["per_rank"] = {one, one, one};
-    for (auto [r, s] : {std::pair{0, 1.1}, {1, 0.4}, {2, 0.05}})
-        c["per_rank"][r]["compute_s"] = s;
+    for (std::size_t r = 0; r < 3; ++r)
+        c["per_rank"][r]["compute_s"] = predicted_s[r];
+    return t;
+}
+} // namespace
+
+// Each busy rank's compute apart from their sum (session 56): ranks predicted +10 % and -20 %
+// sum to -0.7 %, which the configuration's compute error alone would call right. A rank with
+// under a tenth of the compute is listed, not summarised; time-shared runs are summarised apart.
+TEST(Validate, ReportsEachBusyRanksComputeApart) {
+    auto [m, p] = three_ranks({1.1, 0.4, 0.05});
+    auto &c = p["configurations"][0];
     bool exceeded = false;
     auto v = validate({}, {p}, {m}, {}, exceeded);
     ASSERT_EQ(v["configurations"].size(), 1u);
@@ -1300,27 +1314,15 @@ TEST(Validate, ReportsEachBusyRanksComputeApart) {
 // at 1.2x the reference (its gauge), rank 1 at 0.8x; at their own speeds the predictions are
 // -10 % and -20 % off, where the pooled gauge would tell another story for each.
 TEST(Validate, ReportsEachBusyRanksComputeAtItsOwnCoresSpeed) {
-    auto m = measured_run(1.0);
-    m.config.ranks = 3;
-    RankStats back = m.intervals[0].ranks[0], front = back, dry = back;
-    back.timers = {{"comp_s", 1.0}, {"comm_s", 0}, {"wait_s", 0}};
-    front.timers = {{"comp_s", 0.5}, {"comm_s", 0}, {"wait_s", 0}};
-    dry.timers = {{"comp_s", 0.01}, {"comm_s", 0}, {"wait_s", 0}};
+    auto [m, p] = three_ranks({0.75, 0.5, 0.01});
     constexpr double reference = 3e-5;
-    back.gauge_cpu_s = 10 * 1.2 * reference;
-    front.gauge_cpu_s = 10 * 0.8 * reference;
-    dry.gauge_cpu_s = 10 * reference;
-    back.gauge_samples = front.gauge_samples = dry.gauge_samples = 10;
-    m.intervals[0].ranks = {back, front, dry};
-    m.placement_pus = {0, 1, 0};
-    auto p = prediction(1.0);
+    for (auto [r, speed] : {std::pair{0, 1.2}, {1, 0.8}, {2, 1.0}}) {
+        auto &rank = m.intervals[0].ranks[static_cast<std::size_t>(r)];
+        rank.gauge_cpu_s = 10 * speed * reference;
+        rank.gauge_samples = 10;
+    }
     auto &c = p["configurations"][0];
-    c["ranks"] = 3;
     c["speed_gauge_reference_cpu_s"] = reference;
-    const nlohmann::json one = c["per_rank"][0];
-    c["per_rank"] = {one, one, one};
-    for (auto [r, s] : {std::pair{0, 0.75}, {1, 0.5}, {2, 0.01}})
-        c["per_rank"][r]["compute_s"] = s;
     bool exceeded = false;
     auto v = validate({}, {p}, {m}, {}, exceeded);
     ASSERT_EQ(v["configurations"].size(), 1u);
