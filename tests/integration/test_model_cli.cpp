@@ -1649,6 +1649,40 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
     EXPECT_GT(bias["noise_sd_log"].get<double>(), 0.04);
     EXPECT_EQ(bias["schema"], 1);
     EXPECT_NE(r.out.find("**systematic**"), std::string::npos);
+    // The targets on the configurations' mean errors: the sorted one's +15 % misses
+    // both (the table one's mean is 0), and 2 standard errors of its noise (sd 0.046 of ln over
+    // 6 jobs) put its bound at 1.15 e^0.0376 - 1.
+    const auto &expected = bias["targets_on_expected_error"];
+    EXPECT_EQ(expected["configurations"], 2);
+    EXPECT_NEAR(expected["median_abs_mean_error"].get<double>(), 0.075, 1e-9);
+    EXPECT_NEAR(expected["max_abs_mean_error"].get<double>(), 0.15, 1e-9);
+    EXPECT_EQ(expected["max_configuration"], "dambreak sorted s1 2 x 1");
+    EXPECT_NEAR(expected["max_abs_mean_error_plus_2_se"].get<double>(), 0.1941, 5e-4);
+    EXPECT_FALSE(expected["median_met"].get<bool>());
+    EXPECT_FALSE(expected["max_met"].get<bool>());
+    EXPECT_EQ(expected["single_jobs"]["jobs"], 6);
+    EXPECT_EQ(expected["single_jobs"]["both_met"], 0);
+    EXPECT_NE(r.out.find("The targets against the expected error"), std::string::npos);
+    // Three jobs of the table configuration alone, within 2 %: both targets met, in every job.
+    std::string small;
+    for (const double e : {0.01, -0.02, 0.015}) {
+        const nlohmann::json c{{"setup", "still"}, {"grid", "table"}, {"scale", 1.0},
+                               {"ranks", 2},       {"threads", 1},    {"steps", 300},
+                               {"wall_error", e}};
+        const fs::path p = dir / ("small_" + std::to_string(small.size()) + ".json");
+        std::ofstream(p) << nlohmann::json{
+            {"benchmark", "sphmodel-validation"},
+            {"schema", 1},
+            {"configurations",
+             {c}}}.dump();
+        small += ' ';
+        small += p.string();
+    }
+    ASSERT_EQ(run(script + small + " --json " + out.string()).code, 0);
+    const auto met = load(out)["targets_on_expected_error"];
+    EXPECT_TRUE(met["median_met"].get<bool>());
+    EXPECT_TRUE(met["max_met"].get<bool>());
+    EXPECT_EQ(met["single_jobs"]["both_met"], 3);
     // The cost term's trend: only the configuration that carries it, at the planted ratio.
     const sphperf::testing::Run rt =
         run(script + reports + " --term cost-trend --json " + out.string());
