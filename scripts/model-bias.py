@@ -62,6 +62,7 @@ def configuration_key(c):
             int(c["steps"]))
 
 
+DEFAULT_MIN_JOBS = 3  # reports a configuration needs before it can be marked systematic
 # Issue 6's targets on the total wall time over the validation set.
 MEDIAN_TARGET = 0.05
 MAX_TARGET = 0.10
@@ -254,7 +255,7 @@ def main():
     ap.add_argument("--term", default="wall",
                     help="which error: wall (default), cost, cost-first-third, cost-last-third, "
                          "cost-trend or rank-compute (see above)")
-    ap.add_argument("--min-jobs", type=int, default=3,
+    ap.add_argument("--min-jobs", type=int, default=DEFAULT_MIN_JOBS,
                     help="reports a configuration needs before it can be marked systematic (default 3)")
     ap.add_argument("--json", metavar="OUT", help="also write the summary as JSON to OUT")
     args = ap.parse_args()
@@ -276,15 +277,20 @@ def main():
         sys.exit(2)
     print_table(summary, reports, args.own_speed, args.min_jobs, args.term)
     if args.json:
-        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-        doc = {"schema": SCHEMA, "benchmark": "sphperf-model-bias", "git_commit": git_commit(root),
-               "errors": "own_speed" if args.own_speed else "as_predicted", "term": args.term,
-               "min_jobs": args.min_jobs,
-               "inputs": [{"path": p, "git_commit": d.get("git_commit"), "host": d.get("host"),
-                           "timestamp": d.get("timestamp"), "build": d.get("build"),
-                           "topology": d.get("topology")} for p, d in reports]}
-        doc.update(summary)
-        write_json(args.json, doc)
+        write_json(args.json, report_json(summary, reports, args.own_speed, args.term, args.min_jobs))
+
+
+def report_json(summary, reports, own_speed, term, min_jobs):
+    """The summary as a JSON report: schema, this checkout's commit, each input's provenance."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    doc = {"schema": SCHEMA, "benchmark": "sphperf-model-bias", "git_commit": git_commit(root),
+           "errors": "own_speed" if own_speed else "as_predicted", "term": term,
+           "min_jobs": min_jobs,
+           "inputs": [{"path": p, "git_commit": d.get("git_commit"), "host": d.get("host"),
+                       "timestamp": d.get("timestamp"), "build": d.get("build"),
+                       "topology": d.get("topology")} for p, d in reports]}
+    doc.update(summary)
+    return doc
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@
 #   scripts/model-node.sh --machine MACHINE.json --out DIR [--quick]
 # Writes DIR/{model,prediction_*,validation}.json, validation.md, the PNGs, the SPH reports
 # under DIR/runs/ and the exchange benchmarks run right before the validation runs under
-# DIR/exchange-fresh/. Nothing else should run meanwhile: the figures are timings.
+# DIR/exchange-fresh/; a full job (not --quick) also keeps its validation.json in DIR/jobs/ and
+# writes DIR/bias.md over every kept job (scripts/keep-job.py). Nothing else should run
+# meanwhile: the figures are timings.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 # Each stage's header says how far into the job it starts (the README's time budget).
@@ -518,5 +520,13 @@ beside model_and_validate "$out/levelled-one-se" levelled-one-se froude
 for pid in "${beside_pids[@]}"; do wait "$pid"; done # a failed comparison fails the job
 quick_flag=()
 [ "$quick" -eq 1 ] && quick_flag=(--quick)
+# Every full job's validation.json kept in $out/jobs/, and the targets set against the mean over
+# the kept jobs (bias.md; validation.md quotes it): one job cannot tell the model from the host's
+# noise, several can (scripts/keep-job.py, session 78). Not --quick: its figures mean nothing. A
+# failure here (a broken kept report) is named and leaves the job's own results standing.
+if [ "$quick" -eq 0 ]; then
+    /usr/bin/python3 "$root/scripts/keep-job.py" "$out" ||
+        echo "model-node.sh: keep-job.py failed (above); this job's results stand" >&2
+fi
 /usr/bin/python3 "$root/scripts/plot-model.py" --dir "$out" --calibration-s "$cal_s" \
     --validation-s "$val_s" --fresh-exchange-s "$fresh_s" "${quick_flag[@]}"

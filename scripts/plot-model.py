@@ -353,6 +353,36 @@ def config_label(r):
             f"{' overlap' if r.get('overlap') else ''} s{r['scale']:g} {r['ranks']} x {r['threads']}")
 
 
+def kept_jobs_lines(validation, d):
+    """The targets against the expected error over the main jobs kept in DIR/jobs
+    (scripts/keep-job.py, session 78), when DIR/bias.json holds this job; else nothing."""
+    path = os.path.join(d, "bias.json")
+    if not os.path.exists(path):
+        return []
+    bias = load(path)
+    this = (validation.get("git_commit"), validation.get("timestamp"))
+    if this not in {(i.get("git_commit"), i.get("timestamp")) for i in bias.get("inputs", [])}:
+        return []  # written before this job: not its history
+    t = bias.get("targets_on_expected_error")
+    if not t:
+        return [f"Over the {len(bias['inputs'])} main jobs kept in `jobs/` (bias.md): too few "
+                f"jobs per configuration to set the targets against their mean errors (3 needed)."]
+    pct = lambda v: f"{100 * v:.1f} %"
+    mark = lambda ok: "met" if ok else "**missed**"
+    text = (f"Over the {len(bias['inputs'])} main jobs kept in `jobs/` (bias.md; delete those of "
+            f"other code), each configuration's mean error, what the model gets wrong every time: "
+            f"median {pct(t['median_abs_mean_error'])} ({mark(t['median_met'])}), max "
+            f"{pct(t['max_abs_mean_error'])} ({t['max_configuration']}; "
+            f"{mark(t['max_met'])})")
+    own_path = os.path.join(d, "bias_own_speed.json")
+    own = load(own_path).get("targets_on_expected_error") if os.path.exists(own_path) else None
+    if own:
+        text += (f"; at each run's own speed {pct(own['median_abs_mean_error'])} / "
+                 f"{pct(own['max_abs_mean_error'])}")
+    sj = t["single_jobs"]
+    return [text + f"; the jobs one by one met both targets in {sj['both_met']} of {sj['jobs']}."]
+
+
 def summary_lines(validation, args):
     """The headline first: each target against its figure, then what bounds them on this host."""
     s = validation["summary"]
@@ -393,6 +423,8 @@ def summary_lines(validation, args):
                        f"band of +-{band['sds']:g} sd")
     if context:
         lines.append("For scale: " + "; ".join(context) + ".")
+    if not args.quick:
+        lines += kept_jobs_lines(validation, args.dir)
     if args.calibration_s and args.validation_s:
         lines.append(f"Calibration cost {100 * args.calibration_s / args.validation_s:.0f} % of the "
                      f"wall time of the validation runs it predicts ({args.calibration_s:.0f} s "

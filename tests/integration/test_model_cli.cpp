@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
+#include <iterator>
 #include <map>
 #include <numeric>
 #include <set>
@@ -1716,6 +1718,92 @@ TEST(ModelCli, ModelBiasTellsAPlantedBiasFromNoise) {
          {reports + " --term cost --own-speed", "--own-speed with --term cost"},
          {reports + " --term rank-compute --own-speed", "--own-speed with --term rank-compute"},
          {reports + " --term costs", "--term 'costs': expected one of wall, cost"}});
+    fs::remove_all(dir);
+}
+
+// scripts/keep-job.py: each full main job's validation.json kept in DIR/jobs/ (the same job
+// once), and from two kept jobs on the bias over them (bias.json, bias_own_speed.json,
+// bias.md) with the targets against the planted mean error; fewer kept jobs remove it. Bad input
+// exits 2 with one line and keeps nothing.
+TEST(ModelCli, KeepJobKeepsEachJobAndSetsTheTargetsOverThem) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("sphperf_keep_job_" + std::to_string(getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string script =
+        "/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) + "/keep-job.py " + dir.string();
+    // Three jobs of one configuration: 12 % high as measured times e^{+-0.05}, 3 % at own speed.
+    auto write_job = [&](int job, double noise) {
+        const nlohmann::json c{{"setup", "still"},
+                               {"grid", "sorted"},
+                               {"scale", 1.0},
+                               {"ranks", 2},
+                               {"threads", 1},
+                               {"steps", 300},
+                               {"wall_error", std::exp(std::log(1.12) + noise) - 1},
+                               {"speed_gauge", {{"wall_error", 0.03}}}};
+        std::ofstream(dir / "validation.json") << nlohmann::json{
+            {"benchmark", "sphmodel-validation"},
+            {"schema", 1},
+            {"git_commit", "0123456789abcdef"},
+            {"timestamp", "2026-01-0" + std::to_string(job) + "T10:00:00Z"},
+            {"configurations", {c}}}.dump();
+    };
+    auto kept = [&] {
+        return std::distance(fs::directory_iterator(dir / "jobs"), fs::directory_iterator{});
+    };
+    write_job(1, 0.05);
+    ASSERT_EQ(run(script).code, 0);
+    ASSERT_EQ(run(script).code, 0); // the same job twice is kept once
+    EXPECT_EQ(kept(), 1);
+    EXPECT_TRUE(fs::exists(dir / "jobs" / "01234567_20260101T100000Z" / "validation.json"));
+    EXPECT_FALSE(fs::exists(dir / "bias.json")); // one job cannot tell bias from noise
+    write_job(2, -0.05);
+    ASSERT_EQ(run(script).code, 0);
+    write_job(3, 0.0);
+    const sphperf::testing::Run r = run(script);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(kept(), 3);
+    const auto bias = load(dir / "bias.json");
+    EXPECT_EQ(bias["inputs"].size(), 3u);
+    const auto &t = bias["targets_on_expected_error"];
+    EXPECT_NEAR(t["median_abs_mean_error"].get<double>(), 0.12, 1e-9);
+    EXPECT_FALSE(t["max_met"].get<bool>());
+    EXPECT_NEAR(load(dir / "bias_own_speed.json")["targets_on_expected_error"]["max_abs_mean_error"]
+                    .get<double>(),
+                0.03, 1e-9);
+    std::ifstream md(dir / "bias.md");
+    const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("The targets against the expected error"), std::string::npos);
+    EXPECT_NE(text.find("At each run's own host speed"), std::string::npos);
+    // Down to one kept job: no bias over jobs is left standing.
+    fs::remove_all(dir / "jobs" / "01234567_20260102T100000Z");
+    fs::remove_all(dir / "jobs" / "01234567_20260103T100000Z");
+    fs::remove(dir / "validation.json");
+    write_job(1, 0.05);
+    ASSERT_EQ(run(script).code, 0);
+    EXPECT_FALSE(fs::exists(dir / "bias.json"));
+    EXPECT_FALSE(fs::exists(dir / "bias.md"));
+    // Bad input: no report, a report without its timestamp, not a folder.
+    for (const auto &[setup, expect] : std::vector<std::pair<std::function<void()>, std::string>>{
+             {[&] { fs::remove(dir / "validation.json"); }, "cannot read"},
+             {[&] {
+                  std::ofstream(dir / "validation.json")
+                      << R"({"benchmark": "sphmodel-validation", "configurations": []})";
+              },
+              "no git_commit or timestamp"}}) {
+        fs::remove_all(dir / "jobs");
+        setup();
+        const sphperf::testing::Run b = run(script);
+        EXPECT_EQ(b.code, 2) << b.err;
+        EXPECT_EQ(b.err_lines(), 1) << b.err;
+        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
+        EXPECT_FALSE(fs::exists(dir / "jobs"));
+    }
+    const sphperf::testing::Run nf = run("/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) +
+                                         "/keep-job.py " + (dir / "nope").string());
+    EXPECT_EQ(nf.code, 2);
+    EXPECT_NE(nf.err.find("is not a folder"), std::string::npos) << nf.err;
     fs::remove_all(dir);
 }
 

@@ -57,6 +57,8 @@ assert len(reps) == 3 * len(names), f"repeats/ holds {len(reps)} runs of {len(na
 for name in names:
     assert os.path.exists(os.path.join(d, "runs", name + ".json")), f"runs/ lacks the median run of {name}"
 print(f"slurm-check: repeats/ holds 3 runs each of {len(names)} short configurations")
+# A --quick job's figures mean nothing: it keeps no job for the bias over jobs (keep-job.py).
+assert not os.path.exists(os.path.join(d, "jobs")), "a --quick job kept its validation in jobs/"
 first = json.load(open(os.path.join(d, "first-runs", "validation.json")))
 assert first["summary"]["wall_abs_error"]["count"] == n, "first-runs/ validates another set"
 md = open(os.path.join(d, "validation.md")).read()
