@@ -94,9 +94,13 @@ def write_bias(directory, kept):
 
 
 def main():
-    if len(sys.argv) != 2 or sys.argv[1] in ("-h", "--help"):
+    if len(sys.argv) == 2 and sys.argv[1] in ("-h", "--help"):
         print(__doc__)
-        sys.exit(0 if len(sys.argv) == 2 else 2)
+        sys.exit(0)
+    if len(sys.argv) != 2:
+        print(f"keep-job.py: {len(sys.argv) - 1} arguments given: expected one, a main job's "
+              "results folder (see --help)", file=sys.stderr)
+        sys.exit(2)
     directory = sys.argv[1]
     try:
         if not os.path.isdir(directory):

@@ -1804,6 +1804,11 @@ TEST(ModelCli, KeepJobKeepsEachJobAndSetsTheTargetsOverThem) {
                                          "/keep-job.py " + (dir / "nope").string());
     EXPECT_EQ(nf.code, 2);
     EXPECT_NE(nf.err.find("is not a folder"), std::string::npos) << nf.err;
+    const sphperf::testing::Run none =
+        run("/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) + "/keep-job.py");
+    EXPECT_EQ(none.code, 2);
+    EXPECT_EQ(none.err_lines(), 1) << none.err;
+    EXPECT_NE(none.err.find("expected one"), std::string::npos) << none.err;
     fs::remove_all(dir);
 }
 
