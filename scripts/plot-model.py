@@ -405,8 +405,18 @@ def summary_lines(validation, args):
     lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in rows]
     lines.append("")
     worst = sorted(validation["configurations"], key=lambda r: -abs(r["wall_error"]))[:3]
+
+    def at_own_speed(r):
+        # A miss the host's speed explains says so: the run's gauge against the calibration's.
+        sg = r.get("speed_gauge") or {}
+        if sg.get("gauge_factor") is None or sg.get("wall_error") is None:
+            return ""
+        return (f" (the host {1 / sg['gauge_factor']:.2f} times as fast as for the calibration, "
+                f"by the run's speed gauge; {100 * sg['wall_error']:+.1f} % at that speed)")
+
     lines.append("Largest wall-time errors (prediction against the run as measured): " +
-                 ", ".join(f"{config_label(r)} {100 * r['wall_error']:+.1f} %" for r in worst) + ".")
+                 ", ".join(f"{config_label(r)} {100 * r['wall_error']:+.1f} %{at_own_speed(r)}"
+                           for r in worst) + ".")
     context = []
     own = s.get("wall_abs_error_speed_corrected")
     if own:
