@@ -409,7 +409,7 @@ def summary_lines(validation, args):
     def at_own_speed(r):
         # A miss the host's speed explains says so: the run's gauge against the calibration's.
         sg = r.get("speed_gauge") or {}
-        if sg.get("gauge_factor") is None or sg.get("wall_error") is None:
+        if not sg.get("gauge_factor") or sg.get("wall_error") is None:
             return ""
         return (f" (the host {1 / sg['gauge_factor']:.2f} times as fast as for the calibration, "
                 f"by the run's speed gauge; {100 * sg['wall_error']:+.1f} % at that speed)")
