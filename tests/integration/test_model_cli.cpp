@@ -2062,3 +2062,85 @@ TEST(ModelCli, ReplayJobCalibratesOnTheRunsItKeeps) {
         EXPECT_FALSE(fs::exists(bad));
     }
 }
+
+// scripts/gauge-drift.py recovers a planted drift of the host's speed within runs (the gauge 5 %
+// lower from 2 s into every run, whatever the run's own level) and a planted dependence between
+// runs (each run's level 40 us x wall^-0.1), each without reading it as the other; bad input
+// exits 2.
+TEST(ModelCli, GaugeDriftTellsWithinRunsFromBetweenRuns) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("sphperf_gauge_drift_" + std::to_string(getpid()));
+    fs::remove_all(dir);
+    const std::string script =
+        "/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) + "/gauge-drift.py ";
+    constexpr double interval_s = 0.2;
+    // A run of `intervals` intervals of 0.2 s on 2 ranks; gauge(t) seconds per sample.
+    auto write_run = [&](const fs::path &folder, int id, int intervals,
+                         const std::function<double(double)> &gauge) {
+        fs::create_directories(folder);
+        nlohmann::json ivs = nlohmann::json::array();
+        for (int i = 0; i < intervals; ++i) {
+            const double g = gauge((i + 0.5) * interval_s);
+            nlohmann::json rank{{"timers", {{"comp_s", interval_s}, {"comm_s", 0.0}}},
+                                {"gauge_samples", 10},
+                                {"gauge_cpu_s", 10 * g}};
+            ivs.push_back({{"ranks", {rank, rank}}});
+        }
+        std::ofstream(folder / ("run_" + std::to_string(id) + ".json")) << nlohmann::json{
+            {"benchmark", "sph"},
+            {"host", "test"},
+            {"wall_s", intervals * interval_s},
+            {"intervals", ivs}}.dump();
+    };
+    const std::vector<int> lengths{5, 10, 15, 20, 30, 40, 12, 25, 8, 35, 18};
+    for (std::size_t k = 0; k < lengths.size(); ++k) {
+        const double level = 40e-6 * std::exp(0.03 * static_cast<double>(k % 4));
+        write_run(dir / "within", static_cast<int>(k), lengths[k],
+                  [&](double t) { return t >= 2 ? 0.95 * level : level; });
+        const double wall = lengths[k] * interval_s;
+        write_run(dir / "between", static_cast<int>(k), lengths[k],
+                  [&](double) { return 40e-6 * std::pow(wall, -0.1); });
+    }
+    // Another kind of report in a folder is skipped.
+    std::ofstream(dir / "within" / "validation.json")
+        << R"({"benchmark": "sphmodel-validation", "configurations": []})";
+    const fs::path out = dir / "within.json";
+    const sphperf::testing::Run w =
+        run(script + (dir / "within").string() + " --json " + out.string());
+    ASSERT_EQ(w.code, 0) << w.err;
+    const auto within = load(out);
+    EXPECT_EQ(within["schema"], 1);
+    EXPECT_EQ(within["runs"], 11);
+    int bins_read = 0;
+    for (const auto &b : within["within_runs"]["bins"]) {
+        if (b["gauge_change"].is_null()) { // no run reaches 8 s
+            EXPECT_EQ(b["runs"], 0) << b.dump();
+            continue;
+        }
+        ++bins_read;
+        const double expected = b["from_s"].get<double>() >= 2 ? -0.05 : 0.0;
+        EXPECT_NEAR(b["gauge_change"].get<double>(), expected, 1e-6) << b.dump();
+    }
+    EXPECT_EQ(bins_read, 6);
+    const fs::path out2 = dir / "between.json";
+    ASSERT_EQ(run(script + (dir / "between").string() + " --json " + out2.string()).code, 0);
+    const auto between = load(out2);
+    EXPECT_NEAR(between["between_runs"]["slope"].get<double>(), -0.1, 1e-9);
+    for (const auto &b : between["within_runs"]["bins"])
+        if (!b["gauge_change"].is_null())
+            EXPECT_NEAR(b["gauge_change"].get<double>(), 0.0, 1e-9) << b.dump();
+    // Bad input: one line, exit 2, no file.
+    for (const auto &[args, expect] : std::vector<std::pair<std::string, std::string>>{
+             {(dir / "within" / "validation.json").string(), "is not an sph report"},
+             {(dir / "within").string() + " --edges 0,2,1", "--edges '0,2,1'"},
+             {(dir / "nope").string(), "no such file or folder"},
+             {(dir / "within").string() + " --max-rank -1", "--max-rank -1"}}) {
+        const fs::path bad = dir / "bad.json";
+        const sphperf::testing::Run b = run(script + args + " --json " + bad.string());
+        EXPECT_EQ(b.code, 2) << b.err;
+        EXPECT_EQ(b.err_lines(), 1) << b.err;
+        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
+        EXPECT_FALSE(fs::exists(bad));
+    }
+    fs::remove_all(dir);
+}
