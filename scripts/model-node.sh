@@ -510,6 +510,12 @@ beside model_and_validate "$out/full-carry" "$rule" froude relative replay \
 # and table dam breaks, the long single runs, are now at the host's mean speed (session 75).
 beside model_and_validate "$out/median-host-speed" "$rule" froude relative replay \
     "--host-speed median"
+# A candidate, not in use: each interval at the host's speed drift within a run at its time
+# since the run's start (calibrate's speed_gauge.run_drift, session 79: the gauge 2-4 % faster
+# after a run's first seconds on the Zen 4 host; replayed on 34 jobs the mean signed error +3.1
+# -> +1.9 %, the mean |error| unchanged, the earlier hosts' -2.5 -> -2.7 %). Beside in every job,
+# so that blind jobs decide it.
+beside model_and_validate "$out/run-drift" "$rule" froude relative replay "--run-drift on"
 # The long single runs at the host's mean speed over every calibration run (session 75), where
 # they are now at the mean over their own grid and setup's runs (session 76).
 HOST_SPEED_LONG=mean-pooled beside model_and_validate "$out/pooled-mean-host-speed" "$rule" froude

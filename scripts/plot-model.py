@@ -1046,6 +1046,13 @@ def markdown(model, validation, args, out):
                 lines.append(line.format(o=o))
             elif in_use:
                 not_compared.append(subdir)
+        # Candidates not in use, beside on the same runs.
+        drift = untuned("run-drift")
+        if drift:
+            lines.append("A candidate not in use: each interval's compute at the host's speed "
+                         "drift within a run at its time since the run's start (predict "
+                         "--run-drift on, calibrate's speed_gauge.run_drift; model/NOTES.md, "
+                         f"session 79) on the same runs: {drift} (run-drift/validation.json).")
         if not_compared:
             # The --quick job runs 5 of the 17 comparison models (scripts/model-node.sh).
             lines.append("Tuned choices in use without their comparison model in this job (no "

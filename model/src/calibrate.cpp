@@ -1338,6 +1338,132 @@ json gauge_elasticity_between_repeats(const std::vector<SphRun> &runs, int cores
                        "noise does not flatten the slope"}};
 }
 
+json run_drift(const std::vector<SphRun> &runs, int cores) {
+    constexpr std::array<double, 8> edges{0, 0.25, 0.5, 1, 2, 4, 8, 16}; // s since the start
+    constexpr std::size_t bins = edges.size() - 1;                       // the last one open
+    auto bin_of = [&](double t) {
+        std::size_t b = 0;
+        while (b + 1 < bins && t >= edges[b + 1])
+            ++b;
+        return b;
+    };
+    struct Point {
+        std::size_t bin;
+        double log_gauge, weight;
+    };
+    // Each run's busy rank-intervals within the cores, at the middle of the interval (rank 0's
+    // timers summed: the run's wall time).
+    std::vector<std::vector<Point>> points(runs.size());
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        const SphRun &r = runs[i];
+        if (cores > 0 && r.config.ranks * r.config.threads > cores)
+            continue; // descheduled time in its timers and gauge
+        double t = 0;
+        for (const auto &iv : r.intervals) {
+            if (iv.ranks.empty())
+                continue;
+            double wall = 0;
+            for (const auto &[k, v] : iv.ranks[0].timers)
+                wall += v;
+            const std::size_t b = bin_of(t + wall / 2);
+            t += wall;
+            for (const auto &rk : iv.ranks)
+                if (rk.gauge_samples > 0 && rk.gauge_cpu_s > 0 && rk.compute_s() > 0)
+                    points[i].push_back(
+                        {b, std::log(rk.gauge_cpu_s / rk.gauge_samples), rk.compute_s()});
+        }
+    }
+    // ln gauge = the run's level + f(bin), weighted least squares by alternating projections,
+    // f = 0 in the first bin any run reaches; only runs spanning two bins or more inform f.
+    std::vector<const std::vector<Point> *> spanning;
+    std::array<bool, bins> seen{};
+    for (const auto &p : points) {
+        std::set<std::size_t> b;
+        for (const auto &q : p)
+            b.insert(q.bin);
+        if (b.size() > 1) {
+            spanning.push_back(&p);
+            for (std::size_t x : b)
+                seen[x] = true;
+        }
+    }
+    if (spanning.size() < 2)
+        return nullptr;
+    std::array<double, bins> f{};
+    for (int iteration = 0; iteration < 500; ++iteration) {
+        std::array<double, bins> num{}, den{};
+        for (const auto *p : spanning) {
+            double a = 0, w = 0;
+            for (const auto &q : *p) {
+                a += q.weight * (q.log_gauge - f[q.bin]);
+                w += q.weight;
+            }
+            a /= w;
+            for (const auto &q : *p) {
+                num[q.bin] += q.weight * (q.log_gauge - a);
+                den[q.bin] += q.weight;
+            }
+        }
+        std::array<double, bins> next{};
+        std::optional<double> first;
+        for (std::size_t b = 0; b < bins; ++b)
+            if (seen[b]) {
+                next[b] = num[b] / den[b];
+                if (!first)
+                    first = next[b];
+            }
+        double change = 0;
+        for (std::size_t b = 0; b < bins; ++b) {
+            next[b] = seen[b] ? next[b] - *first : 0.0;
+            change = std::max(change, std::abs(next[b] - f[b]));
+        }
+        f = next;
+        if (change < 1e-12)
+            break;
+    }
+    // A bin no run reached takes the last reached one's value (the host's drift levels off:
+    // model/NOTES.md, session 79); before the first reached, 0.
+    double last = 0;
+    json profile = json::array(), edges_json = json::array();
+    for (std::size_t b = 0; b < bins; ++b) {
+        if (seen[b])
+            last = f[b];
+        f[b] = last;
+        profile.push_back(f[b]);
+        edges_json.push_back(edges[b]);
+    }
+    // Each grid, thread count and setup's calibration: the compute-weighted mean of exp(f) over
+    // its rank-intervals, the drift its runs' speed already holds.
+    using Key = std::tuple<std::string, int, std::string>;
+    std::map<Key, std::pair<double, double>> held;
+    for (std::size_t i = 0; i < runs.size(); ++i)
+        for (const auto &q : points[i]) {
+            auto &[sum, weight] =
+                held[{runs[i].config.grid, runs[i].config.threads, runs[i].config.setup}];
+            sum += q.weight * std::exp(f[q.bin]);
+            weight += q.weight;
+        }
+    json per = json::array();
+    for (const auto &[key, v] : held)
+        per.push_back({{"grid", std::get<0>(key)},
+                       {"threads", std::get<1>(key)},
+                       {"setup", std::get<2>(key)},
+                       {"mean_drift", v.first / v.second}});
+    return {{"edges_s", edges_json},
+            {"ln_profile", profile},
+            {"runs", spanning.size()},
+            {"per_setup", per},
+            {"method",
+             "each calibration run's busy rank-intervals within the cores: ln(speed-gauge "
+             "CPU seconds per sample) = the run's level + a profile over the time since "
+             "the run started (bins from edges_s, the last open; least squares weighted "
+             "by compute, the first bin reached 0; a bin no run reached takes the last "
+             "reached one's value); per_setup.mean_drift: exp(profile) averaged over "
+             "the compute of that setup's runs. predict --run-drift on puts each "
+             "interval at exp(profile at its time) / mean_drift (model/NOTES.md, "
+             "session 79)"}};
+}
+
 double gauge_elasticity_for(const json &speed_gauge) {
     if (!speed_gauge.is_object() || !speed_gauge.value("applied", false) ||
         !speed_gauge.contains("elasticity"))
@@ -1368,6 +1494,8 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
         return out;
     }
     const double pooled = median(gauge);
+    // Before any time is scaled: the host's drift within runs, from the runs as measured.
+    const json drift = run_drift(runs, cores);
     // Each run's reference: its grid and thread count's median gauge, or the pooled one.
     std::map<std::pair<std::string, int>, std::vector<double>> groups;
     for (std::size_t i = 0; i < runs.size(); ++i)
@@ -1497,6 +1625,7 @@ json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode, GaugeReference 
            {"log_sd", logs.size() > 1 ? std::sqrt(ss / static_cast<double>(logs.size() - 1)) : 0.0},
            {"runs", list}};
     out["elasticity"] = elasticity;
+    out["run_drift"] = drift;
     const auto setup_at_reference = setup_compute();
     const double compute_at_reference = total(setup_at_reference);
     if (compute_measured > 0 && compute_at_reference > 0)

@@ -297,9 +297,10 @@ std::vector<int> placement_of(int P, int nodes, int threads, int cores) {
 // One step of every rank at simulated time t, from the workload of the slabs.
 // `order`: each rank's compute per interaction over the whole water's (ColumnDisorder), empty:
 // 1 for every rank.
+// `speed`: every compute time's factor (the host speed, times the drift within the run).
 std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const WorkDensity &density,
                                    const Costs &c, int threads, int nodes, double t,
-                                   const std::vector<double> &order, double &step_s) {
+                                   const std::vector<double> &order, double speed, double &step_s) {
     const double disorder = c.disorder ? c.disorder->at(t, c.delta) : 0.0;
     const int P = static_cast<int>(loads.size());
     // Each node places and time-shares its own block of ranks.
@@ -356,8 +357,8 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         for (const auto &t : c.compute.terms)
             x.push_back(w.value(t));
         s.order_factor = order.empty() ? 1.0 : order[static_cast<std::size_t>(r)];
-        s.compute_s = std::max(0.0, c.compute.predict(x)) * profile_factor(c, t) * s.order_factor *
-                      c.host_speed;
+        s.compute_s =
+            std::max(0.0, c.compute.predict(x)) * profile_factor(c, t) * s.order_factor * speed;
         compute.push_back(s.compute_s);
         field.push_back(s.field);
     }
@@ -626,6 +627,66 @@ json host_speed_of(const json &model, const std::string &rule, const std::string
     return out;
 }
 
+// predict --run-drift: the host's drift within a run (calibrate's speed_gauge.run_drift) at a
+// time since the run's start, over the drift the calibration runs of the predicted grid,
+// thread count and setup hold; 1 everywhere when off or when the model has none ("report"
+// says which).
+struct RunDrift {
+    std::vector<double> edges, ln_profile;
+    double held = 1;
+    json report;
+    double at(double t) const {
+        if (ln_profile.empty())
+            return 1.0;
+        std::size_t b = 0;
+        while (b + 1 < ln_profile.size() && t >= edges[b + 1])
+            ++b;
+        return std::exp(ln_profile[b]) / held;
+    }
+};
+
+RunDrift run_drift_of(const json &model, const std::string &rule, const std::string &grid,
+                      int threads, const std::string &setup) {
+    if (rule != "on" && rule != "off")
+        throw UsageError("--run-drift '" + rule + "': expected on or off");
+    RunDrift d;
+    d.report = {{"rule", rule}};
+    if (rule == "off") {
+        d.report["source"] = "predict --run-drift off: the host speed alone";
+        return d;
+    }
+    const json gauge = model.value("speed_gauge", json(nullptr));
+    const json drift = gauge.is_object() ? gauge.value("run_drift", json(nullptr)) : json(nullptr);
+    if (!drift.is_object()) {
+        d.report["source"] = "the model has no speed_gauge.run_drift (no speed gauge applied, "
+                             "too few calibration runs spanning two time bins, or calibrated "
+                             "before session 79): the host speed alone";
+        return d;
+    }
+    for (const auto &row : drift.at("per_setup"))
+        if (row.at("grid") == grid && row.at("threads") == threads && row.at("setup") == setup) {
+            d.held = row.at("mean_drift").get<double>();
+            d.edges = drift.at("edges_s").get<std::vector<double>>();
+            d.ln_profile = drift.at("ln_profile").get<std::vector<double>>();
+        }
+    if (d.ln_profile.empty()) {
+        d.report["source"] = "the model has no calibration run of " + grid + " at " +
+                             std::to_string(threads) + " thread(s) on " + setup +
+                             " within the cores: the host speed alone";
+        return d;
+    }
+    if (!(d.held > 0) || d.edges.size() != d.ln_profile.size())
+        throw UsageError("model speed_gauge.run_drift: expected edges_s and ln_profile of one "
+                         "length and a positive mean_drift");
+    d.report["source"] = "the host's drift within runs (speed_gauge.run_drift) at each "
+                         "interval's time since the run's start, over the drift the calibration "
+                         "runs of " +
+                         grid + " at " + std::to_string(threads) + " thread(s) on " + setup +
+                         " hold (" + std::to_string(d.held) + ")";
+    d.report["held_mean_drift"] = d.held;
+    return d;
+}
+
 // A gauge reference (CPU seconds per sample, or null) at the predicted host speed.
 json at_host_speed(const json &reference, double factor) {
     return reference.is_number() ? json(reference.get<double>() * factor) : reference;
@@ -652,6 +713,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     c.replay_slice_s = req.replay_slice_s;
     const json host_speed = host_speed_of(model, req.host_speed, req.grid, req.threads, req.setup);
     c.host_speed = host_speed.at("factor").get<double>();
+    const RunDrift run_drift = run_drift_of(model, req.run_drift, req.grid, req.threads, req.setup);
+    auto drift_at = [&run_drift](double t) { return run_drift.at(t); };
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
@@ -739,6 +802,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     out["fluid_particles"] = probe.fluid_particles;
     out["request"]["time_sharing_overhead"] = req.time_sharing_overhead;
     out["host_speed"] = host_speed;
+    out["run_drift"] = run_drift.report;
     if (c.sharing_replay)
         out["request"]["replay_slice_s"] = req.replay_slice_s;
     out["request"]["decompositions"] = req.decompositions;
@@ -806,9 +870,12 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
             std::vector<double> peak_particles(static_cast<std::size_t>(P), 0.0),
                 peak_interactions(static_cast<std::size_t>(P), 0.0);
             double wall = 0, idle_onset_step = -1;
+            double last_interval_s = 0, drift_compute = 0, drift_weight = 0;
             for (std::int64_t s0 = 0; s0 < steps; s0 += req.interval) {
                 const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
                 const double n = static_cast<double>(s1 - s0);
+                // The host's drift at the interval's middle (its length: the last interval's).
+                const double drift = drift_at(wall + last_interval_s / 2);
                 std::vector<RankStep> mean(static_cast<std::size_t>(P));
                 for (auto &m : mean)
                     m.order_factor = 0; // a mean over the samples below
@@ -849,9 +916,9 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                     }
                     const std::vector<double> order =
                         priced ? c.column_disorder->factors(*priced) : std::vector<double>{};
-                    const auto ranks =
-                        predict_step(recut(cols, tgt.wall_columns, cuts), density_at(trace, ts), c,
-                                     req.threads, req.nodes, t, order, step_s);
+                    const auto ranks = predict_step(
+                        recut(cols, tgt.wall_columns, cuts), density_at(trace, ts), c, req.threads,
+                        req.nodes, t, order, c.host_speed * drift, step_s);
                     step_mean += step_s / samples_per_interval;
                     for (std::size_t r = 0; r < ranks.size(); ++r) {
                         auto &m = mean[r];
@@ -915,6 +982,11 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 if (balanced && all_busy && idle_onset_step < 0)
                     idle_onset_step = static_cast<double>(s0);
                 wall += step_mean * n;
+                last_interval_s = step_mean * n;
+                for (const auto &m : mean) {
+                    drift_compute += drift * m.compute_s * n;
+                    drift_weight += m.compute_s * n;
+                }
                 intervals.push_back({{"step", s1},
                                      {"time_s", static_cast<double>(s1) * req.dt},
                                      {"wall_s", step_mean * n},
@@ -967,6 +1039,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                           {"peak_rss_bytes_total", total}};
             }
             wall += rebalance_total;
+            const double run_drift_mean = drift_weight > 0 ? drift_compute / drift_weight : 1.0;
             const int per_node = (P + req.nodes - 1) / req.nodes;
             configs.push_back(
                 {{"ranks", P},
@@ -991,10 +1064,12 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  {"wall_s", wall},
                  // The host speed the prediction is at (calibrate's speed gauge; null: the
                  // calibration runs as measured).
+                 // With the run's drift: its mean over the run's compute.
                  {"speed_gauge_reference_cpu_s",
                   at_host_speed(gauge_reference_for(model.value("speed_gauge", json(nullptr)),
                                                     req.grid, req.threads),
-                                c.host_speed)},
+                                c.host_speed * run_drift_mean)},
+                 {"run_drift_mean_factor", run_drift_mean},
                  // How far a run's time follows its gauge (calibrate's elasticity; 1: whole).
                  {"speed_gauge_elasticity",
                   gauge_elasticity_for(model.value("speed_gauge", json(nullptr)))},

@@ -225,6 +225,15 @@ int run(int argc, char **argv) {
                     "others at the median (model/NOTES.md, sessions 75-76)")
         ->capture_default_str()
         ->check(cli::IsMember({"mean", "mean-pooled", "median"}));
+    pre->add_option("--run-drift", q.run_drift,
+                    "on: each interval's compute at the host's speed drift within a run at its "
+                    "time since the run's start (the gauge 2-4 % faster after the first seconds "
+                    "on the VM's Zen 4 host), over the drift its setup's calibration runs hold "
+                    "(calibrate's speed_gauge.run_drift); off: the host speed alone (a candidate "
+                    "not yet in use, validated beside in the main job's run-drift/: "
+                    "model/NOTES.md, session 79)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"on", "off"}));
     pre->add_option("--out", o.out, "prediction to write (JSON)")->required();
 
     auto *val = app.add_subcommand("validate", "Compare predictions with measured SPH reports");

@@ -2126,9 +2126,11 @@ TEST(ModelCli, GaugeDriftTellsWithinRunsFromBetweenRuns) {
     ASSERT_EQ(run(script + (dir / "between").string() + " --json " + out2.string()).code, 0);
     const auto between = load(out2);
     EXPECT_NEAR(between["between_runs"]["slope"].get<double>(), -0.1, 1e-9);
-    for (const auto &b : between["within_runs"]["bins"])
-        if (!b["gauge_change"].is_null())
+    for (const auto &b : between["within_runs"]["bins"]) {
+        if (!b["gauge_change"].is_null()) {
             EXPECT_NEAR(b["gauge_change"].get<double>(), 0.0, 1e-9) << b.dump();
+        }
+    }
     // Bad input: one line, exit 2, no file.
     for (const auto &[args, expect] : std::vector<std::pair<std::string, std::string>>{
              {(dir / "within" / "validation.json").string(), "is not an sph report"},
@@ -2143,4 +2145,90 @@ TEST(ModelCli, GaugeDriftTellsWithinRunsFromBetweenRuns) {
         EXPECT_FALSE(fs::exists(bad));
     }
     fs::remove_all(dir);
+}
+
+// predict --run-drift on (session 79): each interval's compute at the host's drift within a run
+// at its time since the run's start, over the drift the setup's calibration runs hold, and the
+// gauge reference a run's own speed is read against at the mean drift over its compute; off (the
+// default) leaves both; a model without the setup's drift predicts at the host speed alone and
+// says so; a malformed drift is refused (exit 2, no file).
+TEST(ModelCli, RunDriftPutsEachIntervalAtTheDriftOfItsTime) {
+    const auto &f = fixture();
+    auto model = load(f.model);
+    constexpr double reference = 5e-5, held = 0.95;
+    // From 1 ms into a run the host reads 0.9 of its start (edges of the model's own choosing).
+    const nlohmann::json drift = {
+        {"edges_s", {0.0, 1e-3}},
+        {"ln_profile", {0.0, std::log(0.9)}},
+        {"runs", 4},
+        {"per_setup",
+         {{{"grid", "table"}, {"threads", 1}, {"setup", "dambreak"}, {"mean_drift", held}}}}};
+    model["speed_gauge"] = {
+        {"applied", true}, {"reference_cpu_s_per_sample", reference}, {"run_drift", drift}};
+    auto write = [&](const nlohmann::json &m, const std::string &name) {
+        const auto path = f.dir / ("model_drift_" + name + ".json");
+        std::ofstream(path) << m.dump();
+        return path;
+    };
+    auto predict = [&](const fs::path &m, const std::string &extra, const std::string &name) {
+        const auto out = f.dir / ("pred_drift_" + name + ".json");
+        return std::pair{run(bin("sphmodel") + " predict --model " + m.string() +
+                             " --setup dambreak --scale 0.5 --ranks 1,2 --steps 60 --interval 20" +
+                             extra + " --out " + out.string()),
+                         out};
+    };
+    const auto with_drift = write(model, "on");
+    const auto [off, off_out] = predict(with_drift, "", "off");
+    ASSERT_EQ(off.code, 0) << off.err;
+    const auto [on, on_out] = predict(with_drift, " --run-drift on", "on");
+    ASSERT_EQ(on.code, 0) << on.err;
+    const auto po = load(off_out), pn = load(on_out);
+    EXPECT_EQ(po["run_drift"]["rule"], "off");
+    EXPECT_EQ(pn["run_drift"]["rule"], "on");
+    EXPECT_EQ(pn["run_drift"]["held_mean_drift"], held);
+    ASSERT_EQ(po["configurations"].size(), pn["configurations"].size());
+    for (std::size_t k = 0; k < po["configurations"].size(); ++k) {
+        const auto &co = po["configurations"][k], &cn = pn["configurations"][k];
+        ASSERT_EQ(co["intervals"].size(), 3u);
+        double on_compute = 0, off_compute = 0;
+        for (std::size_t i = 0; i < 3; ++i) {
+            // The first interval starts the run (the drift's first bin), the others are past 1 ms.
+            const double factor = (i == 0 ? 1.0 : 0.9) / held;
+            const double a = co["intervals"][i]["ranks"][0]["compute_s"].get<double>();
+            const double b = cn["intervals"][i]["ranks"][0]["compute_s"].get<double>();
+            ASSERT_GT(a, 0);
+            EXPECT_NEAR(b, factor * a, 1e-9 * a) << k << " " << i;
+            for (const auto &rk : co["intervals"][i]["ranks"])
+                off_compute += rk["compute_s"].get<double>();
+            for (const auto &rk : cn["intervals"][i]["ranks"])
+                on_compute += rk["compute_s"].get<double>();
+        }
+        EXPECT_EQ(co["run_drift_mean_factor"], 1.0);
+        const double mean = cn["run_drift_mean_factor"].get<double>();
+        EXPECT_GT(mean, 0.9 / held);
+        EXPECT_LT(mean, 1.0 / held);
+        EXPECT_NEAR(cn["speed_gauge_reference_cpu_s"].get<double>(), mean * reference, 1e-15);
+        EXPECT_NEAR(co["speed_gauge_reference_cpu_s"].get<double>(), reference, 1e-15);
+        EXPECT_LT(on_compute, off_compute);
+    }
+    // Another setup's drift only: the host speed alone, said so.
+    auto other = model;
+    other["speed_gauge"]["run_drift"]["per_setup"][0]["setup"] = "still";
+    const auto [none, none_out] = predict(write(other, "other"), " --run-drift on", "other");
+    ASSERT_EQ(none.code, 0) << none.err;
+    const auto pnone = load(none_out);
+    EXPECT_NE(pnone["run_drift"]["source"].get<std::string>().find("no calibration run of table"),
+              std::string::npos);
+    EXPECT_EQ(pnone["configurations"][0]["wall_s"], po["configurations"][0]["wall_s"]);
+    // A profile and edges of different lengths: refused.
+    auto bad = model;
+    bad["speed_gauge"]["run_drift"]["ln_profile"] = {0.0};
+    const auto [refused, refused_out] = predict(write(bad, "bad"), " --run-drift on", "bad");
+    EXPECT_EQ(refused.code, 2);
+    EXPECT_EQ(refused.err_lines(), 1) << refused.err;
+    EXPECT_NE(refused.err.find("run_drift"), std::string::npos) << refused.err;
+    EXPECT_FALSE(fs::exists(refused_out));
+    const auto [rule, rule_out] = predict(with_drift, " --run-drift maybe", "rule");
+    EXPECT_EQ(rule.code, 2);
+    EXPECT_FALSE(fs::exists(rule_out));
 }

@@ -1783,6 +1783,52 @@ TEST(Calibrate, GridGaugeReferenceNormalisesEachGridByItsOwnRuns) {
     EXPECT_TRUE(gauge_reference_for(nlohmann::json{{"applied", false}}, "table", 1).is_null());
 }
 
+// The host's drift within runs (run_drift, session 79): runs of 8-20 intervals of 0.2 s, each at
+// its own level (0.9-1.2 times 40 us a gauge sample), whose gauge reads 0.96 of its start from
+// 1 s on: the profile is 0 before 1 s and ln 0.96 from there (carried to the bins no run
+// reaches), whatever the levels; the setup's held drift is exp(profile) over its compute; a
+// time-shared run (3 ranks on 2 cores) with any drift stays out; too few runs: null.
+TEST(Calibrate, RunDriftRecoversAPlantedProfileWithinRuns) {
+    auto run = [](int intervals, double level, double late, int ranks = 1) {
+        SphRun r = measured_run(0.2 * intervals);
+        r.config.ranks = ranks;
+        const IntervalStats first = r.intervals[0];
+        r.intervals.clear();
+        for (int k = 0; k < intervals; ++k) {
+            IntervalStats iv = first;
+            iv.step = (k + 1) * 100;
+            auto &rk = iv.ranks[0];
+            rk.timers = {{"pairs_s", 0.1}, {"comp_s", 0.1}, {"comm_s", 0}, {"wait_s", 0}};
+            const double middle = (k + 0.5) * 0.2;
+            rk.gauge_samples = 10;
+            rk.gauge_cpu_s = 10 * 40e-6 * level * (middle >= 1 ? late : 1.0);
+            r.intervals.push_back(iv);
+        }
+        return r;
+    };
+    std::vector<SphRun> runs{run(8, 1.0, 0.96), run(12, 1.1, 0.96), run(16, 0.9, 0.96),
+                             run(20, 1.2, 0.96), run(20, 1.0, 0.5, 3)};
+    const auto d = run_drift(runs, 2);
+    ASSERT_TRUE(d.is_object());
+    EXPECT_EQ(d["runs"], 4);
+    const auto edges = d["edges_s"].get<std::vector<double>>();
+    const auto profile = d["ln_profile"].get<std::vector<double>>();
+    ASSERT_EQ(edges.size(), profile.size());
+    for (std::size_t b = 0; b < profile.size(); ++b)
+        EXPECT_NEAR(profile[b], edges[b] >= 1 ? std::log(0.96) : 0.0, 1e-9) << edges[b];
+    // 56 intervals of the four runs within the cores, 36 of them from 1 s on.
+    ASSERT_EQ(d["per_setup"].size(), 1u);
+    EXPECT_NEAR(d["per_setup"][0]["mean_drift"].get<double>(), (20 + 36 * 0.96) / 56, 1e-9);
+    EXPECT_EQ(d["per_setup"][0]["setup"], "dambreak");
+    // speed_normalise carries it.
+    auto copy = runs;
+    EXPECT_EQ(speed_normalise(copy, SpeedGauge::interval, GaugeReference::pooled,
+                              GaugeElasticity::one, 2)["run_drift"],
+              d);
+    // One run spanning two bins says nothing about a profile.
+    EXPECT_TRUE(run_drift({run(20, 1.0, 0.96)}, 2).is_null());
+}
+
 // The host's mean speed per grid, thread count and setup (mean_factor.per_setup, session 76):
 // each group's compute as measured over the same at the reference speed. Two table dam breaks
 // ran fast (gauge 0.8 and 1.0) and two table still tanks at 1.0 and 1.2: the pooled median

@@ -166,6 +166,12 @@ struct CalibrateOptions {
 // carries "applied_factor" (and "interval_applied_factors") beside the gauge's own "factor".
 // `cores`: the node's, so that runs above them (their timers hold the time they were
 // descheduled) stay out of the estimate; 0: none left out.
+// The host's speed drift within runs (model/NOTES.md, session 79): the runs' speed gauge as a
+// level per run plus a profile over the time since the run started, fitted on the busy
+// rank-intervals of runs within `cores` (0: all); {"edges_s", "ln_profile", "runs",
+// "per_setup": [{"grid", "threads", "setup", "mean_drift"}], "method"}, or null with fewer
+// than two runs spanning two time bins. speed_normalise puts it in "run_drift".
+nlohmann::json run_drift(const std::vector<SphRun> &runs, int cores);
 nlohmann::json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode,
                                GaugeReference reference = GaugeReference::pooled,
                                GaugeElasticity elasticity = GaugeElasticity::one, int cores = 0);
@@ -271,6 +277,13 @@ struct PredictRequest {
     // median (the median calibration run's speed, which the median of repeated short runs
     // lands on; the model of sessions 50-74). model/NOTES.md, sessions 75-76.
     std::string host_speed = "mean";
+    // on: each interval's compute at the host's drift within a run at that time since the
+    // run's start, over the drift its setup's calibration runs hold (calibrate's
+    // speed_gauge.run_drift); off, the default: the host speed alone. Replayed on 34 Zen 4
+    // jobs it takes the mean signed error +3.1 -> +1.9 % and leaves the mean |error| as it is
+    // (7.5 %); on seven earlier-host jobs, low already, -2.5 -> -2.7 %: a candidate, validated
+    // beside in the main job (run-drift/; model/NOTES.md, session 79).
+    std::string run_drift = "off";
 };
 nlohmann::json predict(const nlohmann::json &header, const nlohmann::json &model,
                        const PredictRequest &req);
