@@ -20,12 +20,11 @@ model calibrated on short runs would miss. model/NOTES.md, session 79, has what 
 """
 import argparse
 import glob
-import json
 import math
 import os
 import sys
 
-from script_common import InputError, git_commit, write_json
+from script_common import InputError, git_commit, load_report, write_json
 
 SCHEMA = 1
 JACKKNIFE_GROUPS = 10
@@ -58,19 +57,11 @@ def load_run(path, max_rank, named):
     """(points, wall_s, gauge_s_per_sample, host) of an sph report; None for another kind of
     JSON in a folder; InputError for a named file that is not an sph report."""
     try:
-        with open(path) as f:
-            doc = json.load(f)
-    except OSError as e:
-        raise InputError(f"cannot read {path}: {e.strerror}")
-    except json.JSONDecodeError as e:
-        if not named:
-            return None
-        raise InputError(f"{path} is not JSON ({e.msg} at line {e.lineno})")
-    if not isinstance(doc, dict) or doc.get("benchmark") != "sph":
-        if not named:
-            return None
-        found = doc.get("benchmark") if isinstance(doc, dict) else None
-        raise InputError(f"{path} is not an sph report (benchmark '{found}', expected 'sph')")
+        doc = load_report(path, "sph", "an sph report")
+    except InputError:
+        if named:
+            raise
+        return None  # another kind of file in a folder
     try:
         points, t, cpu, samples = [], 0.0, 0.0, 0.0
         for iv in doc["intervals"]:
