@@ -16,7 +16,8 @@ relative to a run's start (negative: the host faster later in a run), with a sta
 from a 10-group jackknife over the runs. Between runs: the slope of ln(the run's whole gauge)
 on ln(its wall time), with its standard error: whether longer runs meet a faster host, which a
 model calibrated on short runs would miss. model/NOTES.md, session 79, has what it found here.
---json OUT: the same as a JSON report (schema, this checkout's commit, the inputs' hosts).
+--json OUT: the same as a JSON report (schema, this checkout's commit; the inputs' hosts, and
+each distinct build and topology among them).
 """
 import argparse
 import glob
@@ -79,7 +80,8 @@ def load_run(path, max_rank, named):
     except (KeyError, TypeError, IndexError) as e:
         raise InputError(f"{path}: an sph report without intervals' ranks, timers and gauge "
                          f"samples (missing {e})")
-    return points, wall_s, (cpu / samples if samples else 0.0), doc.get("host")
+    source = {"host": doc.get("host"), "build": doc.get("build"), "topology": doc.get("topology")}
+    return points, wall_s, (cpu / samples if samples else 0.0), source
 
 
 def bin_of(t, edges):
@@ -170,15 +172,16 @@ def main():
         if a.max_rank < 0:
             raise InputError(f"--max-rank {a.max_rank}: expected 0 or more")
         edges = edges_of(a.edges)
-        runs, whole, hosts = [], [], set()
+        runs, whole, sources = [], [], []
         for p, named in report_paths(a.inputs):
             run = load_run(p, a.max_rank, named)
             if run is None or not run[0]:
                 continue
-            points, wall_s, gauge, host = run
+            points, wall_s, gauge, source = run
             runs.append(points)
             whole.append((wall_s, gauge))
-            hosts.add(host)
+            if source not in sources:
+                sources.append(source)
         if not runs:
             raise InputError("no sph report with speed-gauge samples among the inputs")
     except InputError as e:
@@ -203,7 +206,7 @@ def main():
     if a.json:
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         write_json(a.json, {"schema": SCHEMA, "benchmark": "sphperf-gauge-drift",
-                            "git_commit": git_commit(root), "hosts": sorted(h or "" for h in hosts),
+                            "git_commit": git_commit(root), "inputs": sources,
                             "max_rank": a.max_rank, "edges_s": edges, "runs": len(runs),
                             "within_runs": {"runs_spanning_bins": used, "bins": rows},
                             "between_runs": between})

@@ -2111,6 +2111,8 @@ TEST(ModelCli, GaugeDriftTellsWithinRunsFromBetweenRuns) {
     const auto within = load(out);
     EXPECT_EQ(within["schema"], 1);
     EXPECT_EQ(within["runs"], 11);
+    ASSERT_EQ(within["inputs"].size(), 1u); // one host, build and topology among the reports
+    EXPECT_EQ(within["inputs"][0]["host"], "test");
     int bins_read = 0;
     for (const auto &b : within["within_runs"]["bins"]) {
         if (b["gauge_change"].is_null()) { // no run reaches 8 s
