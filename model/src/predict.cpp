@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <numeric>
 #include <optional>
@@ -675,9 +676,10 @@ RunDrift run_drift_of(const json &model, const std::string &rule, const std::str
                              " within the cores: the host speed alone";
         return d;
     }
-    if (!(d.held > 0) || d.edges.size() != d.ln_profile.size())
-        throw UsageError("model speed_gauge.run_drift: expected edges_s and ln_profile of one "
-                         "length and a positive mean_drift");
+    if (!(d.held > 0) || d.edges.size() != d.ln_profile.size() || d.edges.front() != 0 ||
+        std::adjacent_find(d.edges.begin(), d.edges.end(), std::greater_equal<>()) != d.edges.end())
+        throw UsageError("model speed_gauge.run_drift: expected edges_s increasing from 0, an "
+                         "ln_profile of the same length and a positive mean_drift");
     d.report["source"] = "the host's drift within runs (speed_gauge.run_drift) at each "
                          "interval's time since the run's start, over the drift the calibration "
                          "runs of " +
@@ -714,7 +716,6 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     const json host_speed = host_speed_of(model, req.host_speed, req.grid, req.threads, req.setup);
     c.host_speed = host_speed.at("factor").get<double>();
     const RunDrift run_drift = run_drift_of(model, req.run_drift, req.grid, req.threads, req.setup);
-    auto drift_at = [&run_drift](double t) { return run_drift.at(t); };
     if (req.cores > 0)
         c.cores = req.cores;
     const int max_ranks = *std::max_element(req.ranks.begin(), req.ranks.end());
@@ -875,7 +876,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
                 const double n = static_cast<double>(s1 - s0);
                 // The host's drift at the interval's middle (its length: the last interval's).
-                const double drift = drift_at(wall + last_interval_s / 2);
+                const double drift = run_drift.at(wall + last_interval_s / 2);
                 std::vector<RankStep> mean(static_cast<std::size_t>(P));
                 for (auto &m : mean)
                     m.order_factor = 0; // a mean over the samples below

@@ -2230,6 +2230,12 @@ TEST(ModelCli, RunDriftPutsEachIntervalAtTheDriftOfItsTime) {
     EXPECT_EQ(refused.err_lines(), 1) << refused.err;
     EXPECT_NE(refused.err.find("run_drift"), std::string::npos) << refused.err;
     EXPECT_FALSE(fs::exists(refused_out));
+    auto unordered = model;
+    unordered["speed_gauge"]["run_drift"]["edges_s"] = {0.0, 0.0};
+    const auto [edges, edges_out] = predict(write(unordered, "edges"), " --run-drift on", "edges");
+    EXPECT_EQ(edges.code, 2);
+    EXPECT_NE(edges.err.find("edges_s increasing from 0"), std::string::npos) << edges.err;
+    EXPECT_FALSE(fs::exists(edges_out));
     const auto [rule, rule_out] = predict(with_drift, " --run-drift maybe", "rule");
     EXPECT_EQ(rule.code, 2);
     EXPECT_FALSE(fs::exists(rule_out));
