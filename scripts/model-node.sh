@@ -510,6 +510,11 @@ beside model_and_validate "$out/full-carry" "$rule" froude relative replay \
 # and table dam breaks, the long single runs, are now at the host's mean speed (session 75).
 beside model_and_validate "$out/median-host-speed" "$rule" froude relative replay \
     "--host-speed median"
+# The replayed time-shared step without the pipeline bubble (sessions 40-79) instead of with it
+# (session 80: where every core time-shares two busy ranks, the replay fed the runs' own CPU came
+# out 10-16 % short; calibrate fits the slope over phi on its own time-shared runs).
+beside model_and_validate "$out/no-bubble" "$rule" froude relative replay \
+    "--time-sharing-bubble off"
 # A candidate, not in use: each interval at the host's speed drift within a run at its time
 # since the run's start (calibrate's speed_gauge.run_drift, session 79: the gauge 2-4 % faster
 # after a run's first seconds on the Zen 4 host; replayed on 34 jobs the mean signed error +3.1

@@ -1038,6 +1038,19 @@ def markdown(model, validation, args, out):
              "dam break came out +4.9 % over five quiet jobs): **tuned**. With every rank at the "
              "whole run's order (sessions 1-55, predict --rank-disorder none) on the same runs: "
              "{o} (one-order-per-run/validation.json)."),
+            (bool((model.get("time_sharing_bubble") or {}).get("per_phi") is not None),
+             "no-bubble",
+             "A replayed time-shared step times 1 + k phi where every core time-shares two busy "
+             "ranks (predict --time-sharing-bubble on, since session 80; phi: per core the second "
+             "busiest rank's compute over the busiest's, the least over the cores; k from the "
+             "calibration's own time-shared runs, each interval's measured step over the step "
+             "replayed from its measured CPU). The replay fed a run's own CPU came out 0.5-2.5 % "
+             "short where some core serves one busy rank, 10-16 % short where every core serves "
+             "two (a scheduler trace: 12 % of the busiest core in 2 us yield-to-yield turns, "
+             "both its ranks waiting for the other core). The form was chosen after the balanced "
+             "4-rank table dam break came out -10 % over 22 blind jobs: **tuned** (k itself is "
+             "fitted in each job). Without it (sessions 40-79) on the same runs: {o} "
+             "(no-bubble/validation.json)."),
         ]
         not_compared = []
         for in_use, subdir, line in choices:

@@ -223,4 +223,28 @@ ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s,
     return out;
 }
 
+double sharing_bubble_phi(std::span<const double> compute_s, std::span<const int> core_of) {
+    if (compute_s.size() != core_of.size() ||
+        std::any_of(core_of.begin(), core_of.end(), [](int c) { return c < 0; }))
+        throw std::invalid_argument(
+            "sharing_bubble_phi: expected one core index >= 0 per rank's compute");
+    std::map<int, std::pair<double, double>> top; // core -> (busiest, second busiest)
+    for (std::size_t r = 0; r < compute_s.size(); ++r) {
+        auto &[first, second] = top[core_of[r]];
+        const double c = std::max(0.0, compute_s[r]);
+        if (c > first) {
+            second = first;
+            first = c;
+        } else {
+            second = std::max(second, c);
+        }
+    }
+    if (top.empty())
+        return 0.0;
+    double phi = 1.0;
+    for (const auto &[core, t] : top)
+        phi = std::min(phi, t.first > 0 ? t.second / t.first : 0.0);
+    return phi;
+}
+
 } // namespace sphperf::model

@@ -74,7 +74,10 @@ struct Costs {
     // predict --time-sharing-overhead replay: a shared node's step replayed
     // (replay_time_shared) with this slice and the calibration's segment shares of compute
     bool sharing_replay = false;
-    double replay_slice_s = 1.5e-3;
+    // The replay's pipeline bubble where every core time-shares two busy ranks (calibrate's
+    // time_sharing_bubble; 0: none or --time-sharing-bubble off): a replayed step x (1 + k phi).
+    double bubble_per_phi = 0;
+    double replay_slice_s = default_replay_slice_s;
     std::optional<std::array<double, 3>> segment_shares;
     // Step-to-step jitter of a rank's compute (k 0: none measured); within the cores a step
     // lasts the expected maximum over the ranks.
@@ -301,7 +304,8 @@ std::vector<int> placement_of(int P, int nodes, int threads, int cores) {
 // `speed`: every compute time's factor (the host speed, times the drift within the run).
 std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const WorkDensity &density,
                                    const Costs &c, int threads, int nodes, double t,
-                                   const std::vector<double> &order, double speed, double &step_s) {
+                                   const std::vector<double> &order, double speed, double &step_s,
+                                   double *bubble_s = nullptr) {
     const double disorder = c.disorder ? c.disorder->at(t, c.delta) : 0.0;
     const int P = static_cast<int>(loads.size());
     // Each node places and time-shares its own block of ranks.
@@ -485,7 +489,13 @@ std::vector<RankStep> predict_step(const std::vector<SlabLoad> &loads, const Wor
         for (double x : compute)
             cpu.push_back({x * sh[0], x * sh[1], x * sh[2]});
         const ReplayedStep rep = replay_time_shared(cpu, c.cores, c.replay_slice_s);
-        step_s = rep.step_s;
+        std::vector<int> core_of(compute.size());
+        for (std::size_t r = 0; r < core_of.size(); ++r)
+            core_of[r] = static_cast<int>(r) % c.cores;
+        const double bubble = c.bubble_per_phi * sharing_bubble_phi(compute, core_of);
+        step_s = rep.step_s * (1 + bubble);
+        if (bubble_s)
+            *bubble_s = rep.step_s * bubble;
         for (std::size_t r = 0; r < out.size(); ++r) {
             out[r].comm_s = rep.comm_s[r];
             out[r].wait_s = std::max(0.0, step_s - out[r].compute_s - out[r].comm_s);
@@ -713,6 +723,34 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     c.sharing_line = req.time_sharing_overhead == "line";
     c.sharing_replay = req.time_sharing_overhead == "replay";
     c.replay_slice_s = req.replay_slice_s;
+    if (req.time_sharing_bubble != "on" && req.time_sharing_bubble != "off")
+        throw UsageError("--time-sharing-bubble '" + req.time_sharing_bubble +
+                         "': expected on or off");
+    // The bubble was fitted against the replay at its default slice: at another slice the
+    // replay's own step moves, and the bubble is not applied (the report says why).
+    json bubble = {{"applied", false}};
+    const json fitted_bubble = model.value("time_sharing_bubble", json(nullptr));
+    if (!c.sharing_replay)
+        bubble["reason"] = "no replay (--time-sharing-overhead " + req.time_sharing_overhead + ")";
+    else if (req.time_sharing_bubble == "off")
+        bubble["reason"] = "--time-sharing-bubble off";
+    else if (fitted_bubble.is_null())
+        bubble["reason"] = "the model has none: no calibration run time-shares two busy ranks on "
+                           "every core";
+    else if (std::abs(req.replay_slice_s - fitted_bubble.at("slice_s").get<double>()) > 1e-12)
+        bubble["reason"] = "--replay-slice-ms differs from the slice it was fitted at";
+    else {
+        try {
+            c.bubble_per_phi = fitted_bubble.at("per_phi").get<double>();
+            bubble["per_phi_se"] = fitted_bubble.at("per_phi_se").get<double>();
+        } catch (const json::exception &e) {
+            throw UsageError(std::string("model time_sharing_bubble: ") + e.what());
+        }
+        if (!std::isfinite(c.bubble_per_phi))
+            throw UsageError("model time_sharing_bubble/per_phi is not a finite number");
+        bubble["applied"] = true;
+        bubble["per_phi"] = c.bubble_per_phi;
+    }
     const json host_speed = host_speed_of(model, req.host_speed, req.grid, req.threads, req.setup);
     c.host_speed = host_speed.at("factor").get<double>();
     const RunDrift run_drift = run_drift_of(model, req.run_drift, req.grid, req.threads, req.setup);
@@ -804,6 +842,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     out["request"]["time_sharing_overhead"] = req.time_sharing_overhead;
     out["host_speed"] = host_speed;
     out["run_drift"] = run_drift.report;
+    out["time_sharing_bubble"] = bubble;
     if (c.sharing_replay)
         out["request"]["replay_slice_s"] = req.replay_slice_s;
     out["request"]["decompositions"] = req.decompositions;
@@ -871,7 +910,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
             std::vector<double> peak_particles(static_cast<std::size_t>(P), 0.0),
                 peak_interactions(static_cast<std::size_t>(P), 0.0);
             double wall = 0, idle_onset_step = -1;
-            double last_interval_s = 0, drift_compute = 0, drift_weight = 0;
+            double last_interval_s = 0, drift_compute = 0, drift_weight = 0, bubble_total = 0;
             for (std::int64_t s0 = 0; s0 < steps; s0 += req.interval) {
                 const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
                 const double n = static_cast<double>(s1 - s0);
@@ -896,7 +935,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                     const auto cols =
                         rescale_columns(src, trace.cell_size, trace.tank_length, tgt.cell_size,
                                         tgt.tank_length, tgt.columns, tgt.fluid_particles);
-                    double step_s = 0;
+                    double step_s = 0, bubble_s = 0;
                     std::optional<ColumnDisorder::SlabOrder> slabs;
                     if (c.column_disorder)
                         slabs = c.column_disorder->slab_order(t, req.scale, tgt.cell_size,
@@ -919,8 +958,9 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                         priced ? c.column_disorder->factors(*priced) : std::vector<double>{};
                     const auto ranks = predict_step(
                         recut(cols, tgt.wall_columns, cuts), density_at(trace, ts), c, req.threads,
-                        req.nodes, t, order, c.host_speed * drift, step_s);
+                        req.nodes, t, order, c.host_speed * drift, step_s, &bubble_s);
                     step_mean += step_s / samples_per_interval;
+                    bubble_total += bubble_s * n / samples_per_interval;
                     for (std::size_t r = 0; r < ranks.size(); ++r) {
                         auto &m = mean[r];
                         const auto &v = ranks[r];
@@ -1071,6 +1111,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                                     req.grid, req.threads),
                                 c.host_speed * run_drift_mean)},
                  {"run_drift_mean_factor", run_drift_mean},
+                 // The replay's bubble added to the wall (0: none, or not applied).
+                 {"time_sharing_bubble_s", bubble_total},
                  // How far a run's time follows its gauge (calibrate's elasticity; 1: whole).
                  {"speed_gauge_elasticity",
                   gauge_elasticity_for(model.value("speed_gauge", json(nullptr)))},

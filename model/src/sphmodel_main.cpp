@@ -193,6 +193,14 @@ int run(int argc, char **argv) {
            "With --time-sharing-overhead replay: the scheduler slice of a computing rank, ms "
            "(default 1.5: the kernel's EEVDF base slice on 2 CPUs; tuned, model/NOTES.md)")
         ->check(FinitePositive);
+    pre->add_option("--time-sharing-bubble", q.time_sharing_bubble,
+                    "With the replay: on: a replayed step times 1 + k phi, the bubble of cores "
+                    "that each time-share two busy ranks, k from the calibration's time-shared "
+                    "runs (calibrate's time_sharing_bubble; phi: per core the second busiest "
+                    "rank's compute over the busiest's, the least over the cores); off: the "
+                    "replay alone (model/NOTES.md, session 80)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"on", "off"}));
     pre->add_option("--rank-disorder", q.rank_disorder,
                     "List and table: each rank's compute per interaction from the memory order "
                     "of its own columns (columns: the calibration's per-column descents, where "

@@ -2240,3 +2240,92 @@ TEST(ModelCli, RunDriftPutsEachIntervalAtTheDriftOfItsTime) {
     EXPECT_EQ(rule.code, 2);
     EXPECT_FALSE(fs::exists(rule_out));
 }
+
+// predict --time-sharing-bubble on (the default, session 80): a replayed step where every core
+// time-shares two busy ranks is multiplied by 1 + k phi (calibrate's time_sharing_bubble), the
+// added time reported per configuration; a run where some core serves one rank (3 ranks on 2
+// cores: phi 0) is left as it is; off, another slice than the fitted one, or another
+// time-sharing form apply none and say why; a malformed bubble is refused (exit 2, no file).
+TEST(ModelCli, TimeSharingBubbleLengthensReplayedStepsWhereEveryCoreSharesTwoBusyRanks) {
+    const auto &f = fixture();
+    auto model = load(f.model);
+    ASSERT_EQ(model["machine"]["cores"], 2);
+    constexpr double k = 0.2;
+    model["time_sharing_bubble"] = {{"per_phi", k}, {"per_phi_se", 0.01}, {"slice_s", 1.5e-3}};
+    auto write = [&](const nlohmann::json &m, const std::string &name) {
+        const auto path = f.dir / ("model_bubble_" + name + ".json");
+        std::ofstream(path) << m.dump();
+        return path;
+    };
+    auto predict = [&](const fs::path &m, const std::string &extra, const std::string &name) {
+        const auto out = f.dir / ("pred_bubble_" + name + ".json");
+        return std::pair{run(bin("sphmodel") + " predict --model " + m.string() +
+                             " --setup dambreak --scale 0.5 --ranks 3,4 --steps 60 --interval 20 "
+                             "--decomposition balanced" +
+                             extra + " --out " + out.string()),
+                         out};
+    };
+    const auto with = write(model, "on");
+    const auto [on, on_out] = predict(with, "", "on");
+    ASSERT_EQ(on.code, 0) << on.err;
+    const auto [off, off_out] = predict(with, " --time-sharing-bubble off", "off");
+    ASSERT_EQ(off.code, 0) << off.err;
+    const auto pn = load(on_out), po = load(off_out);
+    EXPECT_TRUE(pn["time_sharing_bubble"]["applied"].get<bool>());
+    EXPECT_EQ(pn["time_sharing_bubble"]["per_phi"], k);
+    EXPECT_FALSE(po["time_sharing_bubble"]["applied"].get<bool>());
+    EXPECT_EQ(po["time_sharing_bubble"]["reason"], "--time-sharing-bubble off");
+    ASSERT_EQ(pn["configurations"].size(), 2u);
+    // 3 ranks: core 1 serves rank 1 alone, phi 0.
+    const auto &n3 = pn["configurations"][0], &o3 = po["configurations"][0];
+    EXPECT_EQ(n3["ranks"], 3);
+    EXPECT_EQ(n3["wall_s"], o3["wall_s"]);
+    EXPECT_EQ(n3["time_sharing_bubble_s"], 0.0);
+    // 4 balanced ranks, all busy: the wall grows by the reported bubble, at most k of it (phi
+    // <= 1), and in proportion to k.
+    const auto &n4 = pn["configurations"][1], &o4 = po["configurations"][1];
+    EXPECT_EQ(n4["ranks"], 4);
+    const double added = n4["time_sharing_bubble_s"].get<double>();
+    const double w_on = n4["wall_s"].get<double>(), w_off = o4["wall_s"].get<double>();
+    EXPECT_EQ(o4["time_sharing_bubble_s"], 0.0);
+    EXPECT_NEAR(w_on - w_off, added, 1e-9 * w_on);
+    EXPECT_GT(added, 0.0);
+    auto twice = model;
+    twice["time_sharing_bubble"]["per_phi"] = 2 * k;
+    const auto [doubled, doubled_out] = predict(write(twice, "twice"), "", "twice");
+    ASSERT_EQ(doubled.code, 0) << doubled.err;
+    EXPECT_NEAR(load(doubled_out)["configurations"][1]["time_sharing_bubble_s"].get<double>(),
+                2 * added, 1e-9 * added);
+    EXPECT_LE(added, k * (w_off - o4["rebalance_s"].get<double>()) * (1 + 1e-12));
+    // The added time is wait: compute and comm as without it.
+    EXPECT_EQ(n4["totals"]["compute_s"], o4["totals"]["compute_s"]);
+    EXPECT_GT(n4["totals"]["wait_s"].get<double>(), o4["totals"]["wait_s"].get<double>());
+    // Not at another slice, nor with another time-sharing form.
+    const auto [slice, slice_out] = predict(with, " --replay-slice-ms 3", "slice");
+    ASSERT_EQ(slice.code, 0) << slice.err;
+    const auto ps = load(slice_out);
+    EXPECT_FALSE(ps["time_sharing_bubble"]["applied"].get<bool>());
+    EXPECT_NE(ps["time_sharing_bubble"]["reason"].get<std::string>().find("slice"),
+              std::string::npos);
+    EXPECT_EQ(ps["configurations"][1]["time_sharing_bubble_s"], 0.0);
+    const auto [form, form_out] = predict(with, " --time-sharing-overhead per-step", "form");
+    ASSERT_EQ(form.code, 0) << form.err;
+    EXPECT_FALSE(load(form_out)["time_sharing_bubble"]["applied"].get<bool>());
+    // A model without one (no calibration run shares two busy ranks on every core): none.
+    auto none = model;
+    none["time_sharing_bubble"] = nullptr;
+    const auto [without, without_out] = predict(write(none, "none"), "", "none");
+    ASSERT_EQ(without.code, 0) << without.err;
+    EXPECT_EQ(load(without_out)["configurations"][1]["wall_s"], o4["wall_s"]);
+    // Malformed: refused.
+    auto bad = model;
+    bad["time_sharing_bubble"]["per_phi"] = "large";
+    const auto [refused, refused_out] = predict(write(bad, "bad"), "", "bad");
+    EXPECT_EQ(refused.code, 2);
+    EXPECT_EQ(refused.err_lines(), 1) << refused.err;
+    EXPECT_NE(refused.err.find("time_sharing_bubble"), std::string::npos) << refused.err;
+    EXPECT_FALSE(fs::exists(refused_out));
+    const auto [rule, rule_out] = predict(with, " --time-sharing-bubble maybe", "rule");
+    EXPECT_EQ(rule.code, 2);
+    EXPECT_FALSE(fs::exists(rule_out));
+}

@@ -950,6 +950,29 @@ TEST(Placement, ReplayedStepParksTheRankBesideTheBusyOne) {
     EXPECT_THROW(replay_time_shared({ms}, 0, 1.5e-3), std::invalid_argument);
 }
 
+// How fully every core time-shares two busy ranks (session 80): per core the second busiest
+// rank's compute over the busiest's, the least over the cores holding a rank.
+TEST(Placement, SharingBubblePhiIsTheLeastSecondOverFirstOfTheCores) {
+    const std::vector<int> rr4{0, 1, 0, 1}, rr3{0, 1, 0};
+    // Four equal ranks, two per core: 1.
+    EXPECT_DOUBLE_EQ(sharing_bubble_phi(std::vector<double>{2, 2, 2, 2}, rr4), 1.0);
+    // Core 0: 3 and 2 (2/3); core 1: 4 and 1 (1/4): the least.
+    EXPECT_DOUBLE_EQ(sharing_bubble_phi(std::vector<double>{3, 4, 2, 1}, rr4), 0.25);
+    // An idle rank beside the busy one (the equal-slab dam break early on): 0.
+    EXPECT_DOUBLE_EQ(sharing_bubble_phi(std::vector<double>{5, 3, 0, 1}, rr4), 0.0);
+    // Three ranks on two cores: core 1 serves rank 1 alone, whatever the others.
+    EXPECT_DOUBLE_EQ(sharing_bubble_phi(std::vector<double>{2, 2, 2}, rr3), 0.0);
+    // One core serving three ranks: the second busiest over the busiest.
+    EXPECT_DOUBLE_EQ(sharing_bubble_phi(std::vector<double>{4, 1, 2}, std::vector<int>{0, 0, 0}),
+                     0.5);
+    // No compute anywhere: 0; a negative compute counts as none.
+    EXPECT_DOUBLE_EQ(sharing_bubble_phi(std::vector<double>{0, 0, 0, 0}, rr4), 0.0);
+    EXPECT_DOUBLE_EQ(sharing_bubble_phi(std::vector<double>{2, 2, -1, 2}, rr4), 0.0);
+    EXPECT_THROW(sharing_bubble_phi(std::vector<double>{1, 1}, rr3), std::invalid_argument);
+    EXPECT_THROW(sharing_bubble_phi(std::vector<double>{1, 1}, std::vector<int>{0, -1}),
+                 std::invalid_argument);
+}
+
 TEST(Placement, SharingOverheadLineRecoversPlantedCoefficients) {
     // Planted: 0.1 ms per step plus 12 % of the shared core's compute, runs at 1 ms and 4 ms
     // steps (two each), with +-5 us of noise that cancels pairwise.
@@ -1827,6 +1850,74 @@ TEST(Calibrate, RunDriftRecoversAPlantedProfileWithinRuns) {
               d);
     // One run spanning two bins says nothing about a profile.
     EXPECT_TRUE(run_drift({run(20, 1.0, 0.96)}, 2).is_null());
+}
+
+// The pipeline bubble of time-shared cores (sharing_bubble, session 80): 3- and 4-rank runs on 2
+// cores, bound round-robin, whose intervals' longest timers are the step replayed from their
+// CPU per segment times 1 + 0.01 + 0.15 phi (phi 0.3 to 1 on 4 ranks, 0 on 3). The fit
+// recovers 0.15 and 0.01 exactly; a run of two threads, one placed otherwise, one without its CPU
+// segments and one within the cores stay out; without intervals of both kinds: null.
+TEST(Calibrate, SharingBubbleRecoversAPlantedSlopeOverPhi) {
+    constexpr double a = 0.01, k = 0.15;
+    const std::vector<int> rr{0, 1, 0, 1};
+    auto run = [&](std::vector<std::vector<double>> loads, std::vector<int> pus, int threads = 1,
+                   bool segments = true) {
+        SphRun r = measured_run(1.0);
+        const int P = static_cast<int>(loads.front().size());
+        r.config.ranks = P;
+        r.config.threads = threads;
+        r.placement_pus = pus;
+        const IntervalStats first = r.intervals[0];
+        r.intervals.clear();
+        for (std::size_t i = 0; i < loads.size(); ++i) {
+            IntervalStats iv = first;
+            iv.step = static_cast<std::int64_t>(i + 1) * 100;
+            std::vector<std::array<double, 3>> cpu;
+            std::vector<int> core_of;
+            for (int q = 0; q < P; ++q) {
+                const double c = loads[i][static_cast<std::size_t>(q)];
+                cpu.push_back({0.35 * c, 0.01 * c, 0.64 * c});
+                core_of.push_back(q % 2);
+            }
+            const double step = replay_time_shared(cpu, core_of, default_replay_slice_s).step_s *
+                                (1 + a + k * sharing_bubble_phi(loads[i], core_of));
+            iv.ranks.assign(static_cast<std::size_t>(P), first.ranks[0]);
+            for (int q = 0; q < P; ++q) {
+                auto &rk = iv.ranks[static_cast<std::size_t>(q)];
+                rk.steps = 100;
+                rk.has_segment_cpu = segments;
+                for (std::size_t s = 0; s < 3; ++s)
+                    rk.segment_cpu_s[s] = 100 * cpu[static_cast<std::size_t>(q)][s];
+                rk.timers = {{"comp_s", 100 * step}};
+            }
+            r.intervals.push_back(iv);
+        }
+        return r;
+    };
+    const std::vector<std::vector<double>> four{{2e-3, 2e-3, 2e-3, 2e-3},
+                                                {3e-3, 2e-3, 1.5e-3, 2e-3},
+                                                {1e-3, 3e-3, 3e-3, 0.9e-3},
+                                                {2e-3, 1.5e-3, 1.4e-3, 2.5e-3}};
+    const std::vector<std::vector<double>> three{
+        {2e-3, 2e-3, 2e-3}, {4e-3, 1e-3, 0.1e-3}, {1e-3, 2e-3, 3e-3}};
+    const std::vector<SphRun> runs{run(four, rr),
+                                   run(three, {0, 1, 0}),
+                                   run(four, rr, 2),             // two threads per rank: out
+                                   run(four, {0, 0, 1, 1}),      // not round-robin: out
+                                   run(four, rr, 1, false),      // no CPU segments: out
+                                   run({{2e-3, 2e-3}}, {0, 1})}; // within the cores: out
+    const auto b = sharing_bubble(runs, 2);
+    ASSERT_TRUE(b.is_object());
+    EXPECT_NEAR(b["per_phi"].get<double>(), k, 1e-9);
+    EXPECT_NEAR(b["intercept"].get<double>(), a, 1e-9);
+    EXPECT_EQ(b["intervals"], 7);
+    EXPECT_EQ(b["intervals_phi_at_least_half"], 3); // phi 1, 0.5, 0.6 (0.3 below)
+    EXPECT_EQ(b["intervals_phi_below_half"], 4);
+    EXPECT_EQ(b["slice_s"], default_replay_slice_s);
+    ASSERT_EQ(b["runs"].size(), 2u);
+    // Only one kind of interval: no slope to tell.
+    EXPECT_TRUE(sharing_bubble({runs[0]}, 2).is_null());
+    EXPECT_TRUE(sharing_bubble({runs[1]}, 2).is_null());
 }
 
 // The host's mean speed per grid, thread count and setup (mean_factor.per_setup, session 76):

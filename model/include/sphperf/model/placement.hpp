@@ -68,4 +68,17 @@ ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s,
 ReplayedStep replay_time_shared(const std::vector<std::array<double, 3>> &cpu_s, int cores,
                                 double slice_s, int steps = 20, double tick_s = 5e-6);
 
+// The replay's slice by default (predict --replay-slice-ms): the kernel's EEVDF base slice on 2
+// CPUs, 1.5 ms (tuned, session 40; model/NOTES.md).
+inline constexpr double default_replay_slice_s = 1.5e-3;
+
+// How fully every shared core carries two busy ranks (session 80): per core, the compute of its
+// second busiest rank over its busiest's (0 where a core holds fewer than two ranks or none
+// computes), the least of the cores that hold a rank. 1: every core time-shares two equal
+// ranks (the balanced dam break on 4 ranks, 0.67; the half-scale still tank on 4 ranks, 0.95);
+// 0: some core serves one rank alone, or one busy rank beside idle ones (every 3-rank run, the
+// equal-slab dam breaks on 4 ranks, 0.00-0.01). Rank r is on core core_of[r]. Throws
+// std::invalid_argument on spans of different lengths or a core index < 0.
+double sharing_bubble_phi(std::span<const double> compute_s, std::span<const int> core_of);
+
 } // namespace sphperf::model

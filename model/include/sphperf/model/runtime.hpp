@@ -5,6 +5,7 @@
 #include "sphperf/model/comm_model.hpp"
 #include "sphperf/model/fit.hpp"
 #include "sphperf/model/jitter.hpp"
+#include "sphperf/model/placement.hpp"
 #include "sphperf/model/sph_run.hpp"
 #include "sphperf/model/workload.hpp"
 
@@ -172,6 +173,14 @@ struct CalibrateOptions {
 // "per_setup": [{"grid", "threads", "setup", "mean_drift"}], "method"}, or null with fewer
 // than two runs spanning two time bins. speed_normalise puts it in "run_drift".
 nlohmann::json run_drift(const std::vector<SphRun> &runs, int cores);
+// The pipeline bubble of time-shared cores (model/NOTES.md, session 80): over every interval of
+// the runs above `cores` (one node, one-thread ranks bound round-robin, each rank's CPU per
+// segment recorded), measured step / step replayed from that CPU (replay_time_shared at
+// default_replay_slice_s) - 1 = intercept + per_phi x sharing_bubble_phi(the CPU); {"per_phi",
+// "per_phi_se", "intercept", "intercept_se", "r2", "rse", "intervals",
+// "intervals_phi_at_least_half", "intervals_phi_below_half", "slice_s", "runs", "method",
+// "uses"}, or null with fewer than 3 intervals of phi >= 0.5 or of phi < 0.5.
+nlohmann::json sharing_bubble(const std::vector<SphRun> &runs, int cores);
 nlohmann::json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode,
                                GaugeReference reference = GaugeReference::pooled,
                                GaugeElasticity elasticity = GaugeElasticity::one, int cores = 0);
@@ -256,7 +265,12 @@ struct PredictRequest {
     std::string time_sharing_overhead = "replay"; // since session 40 (model/NOTES.md)
     // replay: a shared node's step, comm and wait from the time-shared step replayed
     // (replay_time_shared, session 39) with this scheduler slice, not from an overhead.
-    double replay_slice_s = 1.5e-3;
+    double replay_slice_s = default_replay_slice_s;
+    // on: a replayed step times 1 + k phi, the pipeline bubble of cores that each time-share
+    // two busy ranks (calibrate's time_sharing_bubble, fitted on its time-shared runs; phi:
+    // sharing_bubble_phi of the predicted compute); off: the replay alone (the model of
+    // sessions 40-79). model/NOTES.md, session 80.
+    std::string time_sharing_bubble = "on";
     // columns: each list or table rank's compute per interaction follows the memory order of
     // its own columns (ColumnDisorder, session 56); none: every rank the whole run's profile.
     std::string rank_disorder = "columns";
