@@ -535,6 +535,20 @@ def markdown(model, validation, args, out):
                      f"{1e3 * t['overhead_s_per_step_min']:.3f}-{1e3 * t['overhead_s_per_step_max']:.3f}); "
                      f"until session 34 it multiplied by the median ratio, {t['overhead']:.2f}. Other loads "
                      f"use the exchange benchmark's ratio.")
+    b = model.get("time_sharing_bubble")
+    if b:
+        runs = ", ".join(f"{os.path.basename(r['run'])} phi {r['phi_mean']:.2f}, "
+                         f"{100 * r['loss_mean']:+.1f} %" for r in b["runs"])
+        lines.append(f"Time-sharing bubble (session 80): each interval of the time-shared calibration "
+                     f"runs replayed from its measured CPU per segment, the measured step over the "
+                     f"replayed one ({runs}; phi: per core the second busiest rank's CPU over the "
+                     f"busiest's, the least over the cores) fits {100 * b['intercept']:+.1f} "
+                     f"(+-{100 * b['intercept_se']:.1f}) % + {b['per_phi']:.3f} "
+                     f"(+-{b['per_phi_se']:.3f}) x phi over {b['intervals']} intervals; a replayed "
+                     f"step where every core time-shares two busy ranks is multiplied by 1 + "
+                     f"{b['per_phi']:.3f} phi of its predicted compute (the balanced 4-rank dam "
+                     f"break's phi is about 0.65). This k swings between jobs (0.06-0.33 over 51) and "
+                     f"does not follow the job's own validation runs (model/NOTES.md, session 80).")
     j = model.get("jitter")
     if j:
         form = j.get("form", "sqrt")
