@@ -737,19 +737,25 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     else if (fitted_bubble.is_null())
         bubble["reason"] = "the model has none: no calibration run time-shares two busy ranks on "
                            "every core";
-    else if (std::abs(req.replay_slice_s - fitted_bubble.at("slice_s").get<double>()) > 1e-12)
-        bubble["reason"] = "--replay-slice-ms differs from the slice it was fitted at";
     else {
+        double slice = 0, k = 0, se = 0;
         try {
-            c.bubble_per_phi = fitted_bubble.at("per_phi").get<double>();
-            bubble["per_phi_se"] = fitted_bubble.at("per_phi_se").get<double>();
+            slice = fitted_bubble.at("slice_s").get<double>();
+            k = fitted_bubble.at("per_phi").get<double>();
+            se = fitted_bubble.at("per_phi_se").get<double>();
         } catch (const json::exception &e) {
             throw UsageError(std::string("model time_sharing_bubble: ") + e.what());
         }
-        if (!std::isfinite(c.bubble_per_phi))
+        if (!std::isfinite(k))
             throw UsageError("model time_sharing_bubble/per_phi is not a finite number");
-        bubble["applied"] = true;
-        bubble["per_phi"] = c.bubble_per_phi;
+        if (std::abs(req.replay_slice_s - slice) > 1e-12) {
+            bubble["reason"] = "--replay-slice-ms differs from the slice it was fitted at";
+        } else {
+            c.bubble_per_phi = k;
+            bubble["applied"] = true;
+            bubble["per_phi"] = k;
+            bubble["per_phi_se"] = se;
+        }
     }
     const json host_speed = host_speed_of(model, req.host_speed, req.grid, req.threads, req.setup);
     c.host_speed = host_speed.at("factor").get<double>();

@@ -2325,6 +2325,13 @@ TEST(ModelCli, TimeSharingBubbleLengthensReplayedStepsWhereEveryCoreSharesTwoBus
     EXPECT_EQ(refused.err_lines(), 1) << refused.err;
     EXPECT_NE(refused.err.find("time_sharing_bubble"), std::string::npos) << refused.err;
     EXPECT_FALSE(fs::exists(refused_out));
+    auto sliceless = model;
+    sliceless["time_sharing_bubble"].erase("slice_s");
+    const auto [missing, missing_out] = predict(write(sliceless, "sliceless"), "", "sliceless");
+    EXPECT_EQ(missing.code, 2);
+    EXPECT_EQ(missing.err_lines(), 1) << missing.err;
+    EXPECT_NE(missing.err.find("time_sharing_bubble"), std::string::npos) << missing.err;
+    EXPECT_FALSE(fs::exists(missing_out));
     const auto [rule, rule_out] = predict(with, " --time-sharing-bubble maybe", "rule");
     EXPECT_EQ(rule.code, 2);
     EXPECT_FALSE(fs::exists(rule_out));
