@@ -2149,6 +2149,27 @@ TEST(ModelCli, GaugeDriftTellsWithinRunsFromBetweenRuns) {
     fs::remove_all(dir);
 }
 
+namespace {
+// Model variants written beside the fixture, and predictions from them with one set of options:
+// `<tag>` names the files (model_<tag>_<name>.json, pred_<tag>_<name>.json).
+struct ModelVariants {
+    fs::path dir;
+    std::string tag, options;
+    fs::path write(const nlohmann::json &m, const std::string &name) const {
+        const auto path = dir / ("model_" + tag + "_" + name + ".json");
+        std::ofstream(path) << m.dump();
+        return path;
+    }
+    std::pair<sphperf::testing::Run, fs::path> predict(const fs::path &m, const std::string &extra,
+                                                       const std::string &name) const {
+        const auto out = dir / ("pred_" + tag + "_" + name + ".json");
+        return {run(bin("sphmodel") + " predict --model " + m.string() + options + extra +
+                    " --out " + out.string()),
+                out};
+    }
+};
+} // namespace
+
 // predict --run-drift on (session 79): each interval's compute at the host's drift within a run
 // at its time since the run's start, over the drift the setup's calibration runs hold, and the
 // gauge reference a run's own speed is read against at the mean drift over its compute; off (the
@@ -2167,22 +2188,12 @@ TEST(ModelCli, RunDriftPutsEachIntervalAtTheDriftOfItsTime) {
          {{{"grid", "table"}, {"threads", 1}, {"setup", "dambreak"}, {"mean_drift", held}}}}};
     model["speed_gauge"] = {
         {"applied", true}, {"reference_cpu_s_per_sample", reference}, {"run_drift", drift}};
-    auto write = [&](const nlohmann::json &m, const std::string &name) {
-        const auto path = f.dir / ("model_drift_" + name + ".json");
-        std::ofstream(path) << m.dump();
-        return path;
-    };
-    auto predict = [&](const fs::path &m, const std::string &extra, const std::string &name) {
-        const auto out = f.dir / ("pred_drift_" + name + ".json");
-        return std::pair{run(bin("sphmodel") + " predict --model " + m.string() +
-                             " --setup dambreak --scale 0.5 --ranks 1,2 --steps 60 --interval 20" +
-                             extra + " --out " + out.string()),
-                         out};
-    };
-    const auto with_drift = write(model, "on");
-    const auto [off, off_out] = predict(with_drift, "", "off");
+    const ModelVariants v{f.dir, "drift",
+                          " --setup dambreak --scale 0.5 --ranks 1,2 --steps 60 --interval 20"};
+    const auto with_drift = v.write(model, "on");
+    const auto [off, off_out] = v.predict(with_drift, "", "off");
     ASSERT_EQ(off.code, 0) << off.err;
-    const auto [on, on_out] = predict(with_drift, " --run-drift on", "on");
+    const auto [on, on_out] = v.predict(with_drift, " --run-drift on", "on");
     ASSERT_EQ(on.code, 0) << on.err;
     const auto po = load(off_out), pn = load(on_out);
     EXPECT_EQ(po["run_drift"]["rule"], "off");
@@ -2216,7 +2227,7 @@ TEST(ModelCli, RunDriftPutsEachIntervalAtTheDriftOfItsTime) {
     // Another setup's drift only: the host speed alone, said so.
     auto other = model;
     other["speed_gauge"]["run_drift"]["per_setup"][0]["setup"] = "still";
-    const auto [none, none_out] = predict(write(other, "other"), " --run-drift on", "other");
+    const auto [none, none_out] = v.predict(v.write(other, "other"), " --run-drift on", "other");
     ASSERT_EQ(none.code, 0) << none.err;
     const auto pnone = load(none_out);
     EXPECT_NE(pnone["run_drift"]["source"].get<std::string>().find("no calibration run of table"),
@@ -2225,18 +2236,19 @@ TEST(ModelCli, RunDriftPutsEachIntervalAtTheDriftOfItsTime) {
     // A profile and edges of different lengths: refused.
     auto bad = model;
     bad["speed_gauge"]["run_drift"]["ln_profile"] = {0.0};
-    const auto [refused, refused_out] = predict(write(bad, "bad"), " --run-drift on", "bad");
+    const auto [refused, refused_out] = v.predict(v.write(bad, "bad"), " --run-drift on", "bad");
     EXPECT_EQ(refused.code, 2);
     EXPECT_EQ(refused.err_lines(), 1) << refused.err;
     EXPECT_NE(refused.err.find("run_drift"), std::string::npos) << refused.err;
     EXPECT_FALSE(fs::exists(refused_out));
     auto unordered = model;
     unordered["speed_gauge"]["run_drift"]["edges_s"] = {0.0, 0.0};
-    const auto [edges, edges_out] = predict(write(unordered, "edges"), " --run-drift on", "edges");
+    const auto [edges, edges_out] =
+        v.predict(v.write(unordered, "edges"), " --run-drift on", "edges");
     EXPECT_EQ(edges.code, 2);
     EXPECT_NE(edges.err.find("edges_s increasing from 0"), std::string::npos) << edges.err;
     EXPECT_FALSE(fs::exists(edges_out));
-    const auto [rule, rule_out] = predict(with_drift, " --run-drift maybe", "rule");
+    const auto [rule, rule_out] = v.predict(with_drift, " --run-drift maybe", "rule");
     EXPECT_EQ(rule.code, 2);
     EXPECT_FALSE(fs::exists(rule_out));
 }
@@ -2252,23 +2264,13 @@ TEST(ModelCli, TimeSharingBubbleLengthensReplayedStepsWhereEveryCoreSharesTwoBus
     ASSERT_EQ(model["machine"]["cores"], 2);
     constexpr double k = 0.2;
     model["time_sharing_bubble"] = {{"per_phi", k}, {"per_phi_se", 0.01}, {"slice_s", 1.5e-3}};
-    auto write = [&](const nlohmann::json &m, const std::string &name) {
-        const auto path = f.dir / ("model_bubble_" + name + ".json");
-        std::ofstream(path) << m.dump();
-        return path;
-    };
-    auto predict = [&](const fs::path &m, const std::string &extra, const std::string &name) {
-        const auto out = f.dir / ("pred_bubble_" + name + ".json");
-        return std::pair{run(bin("sphmodel") + " predict --model " + m.string() +
-                             " --setup dambreak --scale 0.5 --ranks 3,4 --steps 60 --interval 20 "
-                             "--decomposition balanced" +
-                             extra + " --out " + out.string()),
-                         out};
-    };
-    const auto with = write(model, "on");
-    const auto [on, on_out] = predict(with, "", "on");
+    const ModelVariants v{f.dir, "bubble",
+                          " --setup dambreak --scale 0.5 --ranks 3,4 --steps 60 --interval 20 "
+                          "--decomposition balanced"};
+    const auto with = v.write(model, "on");
+    const auto [on, on_out] = v.predict(with, "", "on");
     ASSERT_EQ(on.code, 0) << on.err;
-    const auto [off, off_out] = predict(with, " --time-sharing-bubble off", "off");
+    const auto [off, off_out] = v.predict(with, " --time-sharing-bubble off", "off");
     ASSERT_EQ(off.code, 0) << off.err;
     const auto pn = load(on_out), po = load(off_out);
     EXPECT_TRUE(pn["time_sharing_bubble"]["applied"].get<bool>());
@@ -2292,7 +2294,7 @@ TEST(ModelCli, TimeSharingBubbleLengthensReplayedStepsWhereEveryCoreSharesTwoBus
     EXPECT_GT(added, 0.0);
     auto twice = model;
     twice["time_sharing_bubble"]["per_phi"] = 2 * k;
-    const auto [doubled, doubled_out] = predict(write(twice, "twice"), "", "twice");
+    const auto [doubled, doubled_out] = v.predict(v.write(twice, "twice"), "", "twice");
     ASSERT_EQ(doubled.code, 0) << doubled.err;
     EXPECT_NEAR(load(doubled_out)["configurations"][1]["time_sharing_bubble_s"].get<double>(),
                 2 * added, 1e-9 * added);
@@ -2301,38 +2303,38 @@ TEST(ModelCli, TimeSharingBubbleLengthensReplayedStepsWhereEveryCoreSharesTwoBus
     EXPECT_EQ(n4["totals"]["compute_s"], o4["totals"]["compute_s"]);
     EXPECT_GT(n4["totals"]["wait_s"].get<double>(), o4["totals"]["wait_s"].get<double>());
     // Not at another slice, nor with another time-sharing form.
-    const auto [slice, slice_out] = predict(with, " --replay-slice-ms 3", "slice");
+    const auto [slice, slice_out] = v.predict(with, " --replay-slice-ms 3", "slice");
     ASSERT_EQ(slice.code, 0) << slice.err;
     const auto ps = load(slice_out);
     EXPECT_FALSE(ps["time_sharing_bubble"]["applied"].get<bool>());
     EXPECT_NE(ps["time_sharing_bubble"]["reason"].get<std::string>().find("slice"),
               std::string::npos);
     EXPECT_EQ(ps["configurations"][1]["time_sharing_bubble_s"], 0.0);
-    const auto [form, form_out] = predict(with, " --time-sharing-overhead per-step", "form");
+    const auto [form, form_out] = v.predict(with, " --time-sharing-overhead per-step", "form");
     ASSERT_EQ(form.code, 0) << form.err;
     EXPECT_FALSE(load(form_out)["time_sharing_bubble"]["applied"].get<bool>());
     // A model without one (no calibration run shares two busy ranks on every core): none.
     auto none = model;
     none["time_sharing_bubble"] = nullptr;
-    const auto [without, without_out] = predict(write(none, "none"), "", "none");
+    const auto [without, without_out] = v.predict(v.write(none, "none"), "", "none");
     ASSERT_EQ(without.code, 0) << without.err;
     EXPECT_EQ(load(without_out)["configurations"][1]["wall_s"], o4["wall_s"]);
     // Malformed: refused.
     auto bad = model;
     bad["time_sharing_bubble"]["per_phi"] = "large";
-    const auto [refused, refused_out] = predict(write(bad, "bad"), "", "bad");
+    const auto [refused, refused_out] = v.predict(v.write(bad, "bad"), "", "bad");
     EXPECT_EQ(refused.code, 2);
     EXPECT_EQ(refused.err_lines(), 1) << refused.err;
     EXPECT_NE(refused.err.find("time_sharing_bubble"), std::string::npos) << refused.err;
     EXPECT_FALSE(fs::exists(refused_out));
     auto sliceless = model;
     sliceless["time_sharing_bubble"].erase("slice_s");
-    const auto [missing, missing_out] = predict(write(sliceless, "sliceless"), "", "sliceless");
+    const auto [missing, missing_out] = v.predict(v.write(sliceless, "sliceless"), "", "sliceless");
     EXPECT_EQ(missing.code, 2);
     EXPECT_EQ(missing.err_lines(), 1) << missing.err;
     EXPECT_NE(missing.err.find("time_sharing_bubble"), std::string::npos) << missing.err;
     EXPECT_FALSE(fs::exists(missing_out));
-    const auto [rule, rule_out] = predict(with, " --time-sharing-bubble maybe", "rule");
+    const auto [rule, rule_out] = v.predict(with, " --time-sharing-bubble maybe", "rule");
     EXPECT_EQ(rule.code, 2);
     EXPECT_FALSE(fs::exists(rule_out));
 }
