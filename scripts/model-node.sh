@@ -233,6 +233,14 @@ sorted_runs() {
     # session 58's first three jobs (model/NOTES.md, session 58). 300 steps: about 0.1 s.
     sph 1 "cal_dambreak_s0.25_sorted_$1" --setup dambreak --scale 0.25 --grid sorted \
         --steps "$c25_steps" --interval "$c_interval"
+    # And a third, 0.7 on 2 ranks (since session 81): with two scales any two-term fit passes
+    # through both, and cross-validation chose interactions + cell moves or + owned particles
+    # in 54 of 62 replayed jobs, by under 0.1 % of score; both extrapolate to scale 1 about 6-8 %
+    # high, where a sweep (0.25-2, 2 ranks) fits interactions + 24 us a step within 1.4 % at
+    # every scale. The sorted 2-rank runs were +6.9 % over 59 jobs (model/NOTES.md, session 81).
+    # 500 steps: about 0.4 s.
+    sph 2 "cal_dambreak_s0.7_sorted_$1" --setup dambreak --scale 0.7 --grid sorted \
+        --steps "$c7s_steps" --interval "$c_interval"
     sph 2 "cal_still_s0.5_sorted_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     # Above the cores (every rank busy): the app's own time-sharing overhead at 1.5 ranks per
@@ -453,8 +461,11 @@ beside model_and_validate "$out/list-table-two-scales" "$rule" froude
 mapfile -t cal_reports < <(model_runs)
 # Without Cell+Sorted's 1-rank dam breaks at 0.25 (sessions 37-57's calibration: every 1-thread
 # Cell+Sorted run at 0.5).
-mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.25_sorted_')
+mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.(25|7)_sorted_[abc]\.json$')
 beside model_and_validate "$out/sorted-one-scale" "$rule" froude
+# Without Cell+Sorted's 1-thread dam breaks at 0.7 (sessions 58-80's calibration: two scales).
+mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.7_sorted_[abc]\.json$')
+beside model_and_validate "$out/sorted-two-scales" "$rule" froude
 mapfile -t cal_reports < <(model_runs)
 # Without the 2-thread dam breaks at scale 0.35 (sessions 37-51's calibration: at 2 threads
 # the dam break at 0.7 and the still tank at 0.5 only).

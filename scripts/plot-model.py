@@ -11,6 +11,7 @@ import datetime
 import glob
 import json
 import os
+import re
 import statistics
 import sys
 
@@ -1008,6 +1009,18 @@ def markdown(model, validation, args, out):
              "session's first three main jobs, and one of them was replayed with such runs made "
              "afterwards before the change: **tuned**. Without them (sessions 37-57's "
              "calibration) on the same runs: {o} (sorted-one-scale/validation.json)."),
+            (any(re.search(r"_s0\.7_sorted_[abc]\.json$", r["path"])
+                 for r in model["calibration_runs"]),
+             "sorted-two-scales",
+             "Cell+Sorted's 1-thread dam break at a third scale, 0.7 on 2 ranks (500 steps, "
+             "rounds a, b and c), since session 81: with two scales every two-term fit passes "
+             "through both, and cross-validation chose interactions + cell moves or + owned "
+             "particles in 54 of 62 replayed jobs by under 0.1 % of score, both about 6-8 % high "
+             "at scale 1; a scale sweep (0.25-2, 2 ranks) fits interactions + 24 us a step "
+             "within 1.4 % at every scale. The sorted 2-rank runs were +6.9 % over 59 jobs; "
+             "24 of them were replayed with such runs made afterwards before the change: "
+             "**tuned**. Without them (sessions 58-80's calibration) on the same runs: {o} "
+             "(sorted-two-scales/validation.json)."),
             ((model.get("speed_gauge") or {}).get("mode") == "interval",
              "mean-gauge-window",
              "An interval's speed gauge as the compute-weighted median over +-1 interval "

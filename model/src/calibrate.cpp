@@ -318,7 +318,8 @@ std::string configuration_key(const RunConfig &c) {
 
 json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &runs,
                  TermSelection rule, TimeProfile profile, FitWeights weights,
-                 RunLevelRule level_rule, bool walls_term, bool bound_item_costs) {
+                 RunLevelRule level_rule, bool walls_term, bool bound_item_costs,
+                 CvHoldOut hold_out) {
     const std::vector<Point> pts =
         profile != TimeProfile::none ? common_reach(all_pts, runs) : all_pts;
     // With a Froude-time profile the flow's evolution is the profile's: no term that grows with
@@ -365,6 +366,26 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
         }
     }
     const bool by_run = std::set<int>(groups.begin(), groups.end()).size() >= 2;
+    // The folds the term selection scores on: runs, or configurations where a setup has two or
+    // more (a setup's only configuration held out would leave its level unfitted).
+    std::vector<int> folds = groups;
+    if (hold_out == CvHoldOut::configuration) {
+        std::map<std::string, std::set<std::string>> setup_configs;
+        for (const auto &p : pts) {
+            const auto &c = runs.at(static_cast<std::size_t>(p.run)).config;
+            setup_configs[c.setup].insert(configuration_key(c));
+        }
+        std::map<std::string, int> config_index;
+        const int first = static_cast<int>(runs.size());
+        for (std::size_t i = 0; i < pts.size(); ++i) {
+            const auto &c = runs.at(static_cast<std::size_t>(pts[i].run)).config;
+            if (setup_configs.at(c.setup).size() >= 2)
+                folds[i] = config_index
+                               .emplace(configuration_key(c),
+                                        first + static_cast<int>(config_index.size()))
+                               .first->second;
+        }
+    }
     // Relative weights: every row divided by its run's median step (a run's own scale, not the
     // point's noisy value), so the fit, its levels and its held-out error are per unit of step.
     // The held-out scores carry their unit: seconds per step, or a fraction of the run's step.
@@ -399,7 +420,7 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
                 terms.push_back(optional[k]);
         const std::vector<std::vector<double>> X = design(terms, true);
         try {
-            const CvScore score = cross_validate_score(X, yw, groups, setups);
+            const CvScore score = cross_validate_score(X, yw, folds, setups);
             // The held-out runs' summed-compute error, reported beside. Selecting on it was
             // tried in session 12 and not kept (model/NOTES.md, "Cost across scales").
             const json cv_run =
@@ -481,6 +502,7 @@ json compute_fit(const std::vector<Point> &all_pts, const std::vector<SphRun> &r
     j["r2"] = ss_tot > 0 ? 1.0 - ss_res / ss_tot : 1.0;
     j["rse"] = dof > 0 ? std::sqrt(ss_res / dof) : 0.0;
     j["fit_weights"] = relative ? "relative" : "absolute";
+    j["cv_hold_out"] = hold_out == CvHoldOut::configuration ? "configuration" : "run";
     json factors = json::array();
     for (std::size_t k = 0; k < level.groups.size(); ++k)
         factors.push_back({{"run", runs.at(static_cast<std::size_t>(level.groups[k])).path},
@@ -1883,7 +1905,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     json compute = json::array();
     for (const auto &[key, pts] : by_grid_threads) {
         json c = compute_fit(pts, runs, opt.term_selection, opt.time_profile, opt.fit_weights,
-                             opt.run_level, opt.walls_term, opt.bound_item_costs);
+                             opt.run_level, opt.walls_term, opt.bound_item_costs, opt.cv_hold_out);
         c["grid"] = key.first;
         c["threads"] = key.second;
         std::vector<const SphRun *> mine;

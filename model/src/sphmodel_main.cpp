@@ -28,6 +28,7 @@ struct Options {
     bool walls_term = false;
     std::string jitter_form = "auto";
     std::string item_cost_bound = "particle";
+    std::string cv_hold_out = "run";
     PredictRequest predict;
     std::string balance_weights = "count";
     std::int64_t steps = 0;
@@ -113,6 +114,13 @@ int run(int argc, char **argv) {
                     "or none (any positive cost, sessions 1-72)")
         ->capture_default_str()
         ->check(cli::IsMember({"particle", "none"}));
+    cal->add_option("--cv-hold-out", o.cv_hold_out,
+                    "What the term selection's cross-validation holds out at a time: run (one "
+                    "calibration run) or configuration (every repeat of one configuration where "
+                    "its setup ran two or more, so terms are scored on a scale they did not "
+                    "see; replayed on 66 main jobs it did worse: model/NOTES.md, session 81)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"run", "configuration"}));
     cal->add_option("--jitter-form", o.jitter_form,
                     "How a rank's step-to-step compute noise grows with its step: auto (the "
                     "form whose leave-one-run-out prediction of the calibration runs' waits is "
@@ -287,7 +295,8 @@ int run(int argc, char **argv) {
              o.jitter_form == "auto"   ? std::nullopt
              : o.jitter_form == "sqrt" ? std::optional<JitterForm>(JitterForm::sqrt)
                                        : std::optional<JitterForm>(JitterForm::proportional),
-             o.item_cost_bound == "particle"});
+             o.item_cost_bound == "particle",
+             o.cv_hold_out == "configuration" ? CvHoldOut::configuration : CvHoldOut::run});
         std::cout << calibration_table(model);
         sink.write(model);
     } else if (pre->parsed()) {

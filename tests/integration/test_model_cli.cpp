@@ -527,6 +527,46 @@ TEST(ModelCli, FitWeightsReportTheirUnits) {
     EXPECT_FALSE(fs::exists(f.dir / "never.json"));
 }
 
+// calibrate --cv-hold-out: the term selection's cross-validation holds out one run, or every
+// repeat of a configuration. With each of two configurations calibrated twice (the same report
+// given twice), a held-out run has its twin in the fit, so its score is the full fit's residual;
+// a held-out configuration is predicted from the other alone, which the full fit's least squares
+// cannot beat: every candidate scores higher. The rule is recorded; an unknown one exits 2.
+TEST(ModelCli, CrossValidationHoldsOutRunsOrConfigurations) {
+    const auto &f = fixture();
+    std::map<std::string, std::map<std::string, double>> score;
+    for (const std::string hold : {"run", "configuration"}) {
+        const auto out = f.dir / ("model_cv_" + hold + ".json");
+        const sphperf::testing::Run r =
+            run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+                " --cv-hold-out " + hold + " --runs " + f.run1.string() + " " + f.run1.string() +
+                " " + f.run2.string() + " " + f.run2.string() + " --out " + out.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto m = load(out);
+        ASSERT_EQ(m["compute"].size(), 1u);
+        const auto &c = m["compute"][0];
+        EXPECT_EQ(c["cv_hold_out"], hold);
+        for (const auto &cand : c["candidates"])
+            if (cand["cv_rmse_rel"].is_number())
+                score[hold][cand["terms"].dump()] = cand["cv_rmse_rel"].get<double>();
+    }
+    ASSERT_FALSE(score["run"].empty());
+    int compared = 0;
+    for (const auto &[terms, s] : score["run"])
+        if (score["configuration"].count(terms)) {
+            EXPECT_GT(score["configuration"].at(terms), s * (1 + 1e-9)) << terms;
+            ++compared;
+        }
+    EXPECT_GE(compared, 1);
+    const sphperf::testing::Run bad =
+        run(bin("sphmodel") + " calibrate --allow-other-host --machine " + f.machine.string() +
+            " --cv-hold-out setup --runs " + f.run1.string() + " --out " +
+            (f.dir / "never_cv.json").string());
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_NE(bad.err.find("setup"), std::string::npos) << bad.err;
+    EXPECT_FALSE(fs::exists(f.dir / "never_cv.json"));
+}
+
 // A work term that keeps one value per setup although the calibration ran the setup at several
 // rank counts only names the setup: it is no candidate, and the model says so; so does a term
 // that keeps nearly one value per setup (a jitter of 1 % within each setup, 16 against 136

@@ -76,6 +76,11 @@ LinearFit compute_cost_of(const nlohmann::json &entry, const std::string &setup)
 //   pooled_one_percent: one fit pooling the setups, a term kept when it lowers the held-out
 //     error by 1 % (sessions 9-12), kept to report beside it.
 enum class TermSelection { levelled_one_se, levelled_best, pooled_one_percent };
+// What the term selection's cross-validation holds out at a time. run: one calibration run
+// (sessions 13 on); configuration: every repeat of one configuration (setup, scale, ranks ...)
+// where its setup ran two or more configurations, else one run, so that a set of terms is
+// scored on a scale or rank count it did not see, as a prediction is.
+enum class CvHoldOut { run, configuration };
 // How the cost of an interaction changes as a flow evolves. froude: a profile over Froude time
 // (t / sqrt(scale)) of measured over fitted compute per setup, from the calibration runs (a
 // robust quadratic; froude_windowed: a moving ratio, sessions 16-41), and no time-varying term
@@ -144,6 +149,7 @@ struct CalibrateOptions {
     // from the 1-rank runs: a fit at 6-11 us each priced that contrast, not the item, and put
     // 3-4 rank runs 24-162 % high (model/NOTES.md, sessions 33 and 73). Since session 73.
     bool bound_item_costs = true;
+    CvHoldOut cv_hold_out = CvHoldOut::run;
 };
 // The speed gauge's normalisation (session 50): each run's gauge CPU seconds per sample over
 // the runs' median is the host's speed factor during that run, and every time the run measured
