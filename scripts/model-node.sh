@@ -459,8 +459,8 @@ fi
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.25_(list|table)_')
 beside model_and_validate "$out/list-table-two-scales" "$rule" froude
 mapfile -t cal_reports < <(model_runs)
-# Without Cell+Sorted's 1-rank dam breaks at 0.25 (sessions 37-57's calibration: every 1-thread
-# Cell+Sorted run at 0.5).
+# Without Cell+Sorted's 1-thread dam breaks at 0.25 and 0.7 (sessions 37-57's calibration: every
+# 1-thread Cell+Sorted run at 0.5).
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.(25|7)_sorted_[abc]\.json$')
 beside model_and_validate "$out/sorted-one-scale" "$rule" froude
 # Without Cell+Sorted's 1-thread dam breaks at 0.7 (sessions 58-80's calibration: two scales).
