@@ -238,18 +238,11 @@ sorted_runs() {
     # in 54 of 62 replayed jobs, by under 0.1 % of score; both extrapolate to scale 1 about 6-8 %
     # high, where a sweep (0.25-2, 2 ranks) fits interactions + 24 us a step within 1.4 % at
     # every scale. The sorted 2-rank runs were +6.9 % over 59 jobs (model/NOTES.md, session 81).
-    # 500 steps: about 0.4 s.
+    # 500 steps: about 0.4 s. A fourth scale, at 0.35 (session 81) or 0.85 (session 82, blind
+    # beside in ten jobs: the choice moved in one, the sorted 2-rank dam break -0.2 points),
+    # did not help: the candidates' held-out scores stay within 1 % of each other.
     sph 2 "cal_dambreak_s0.7_sorted_$1" --setup dambreak --scale 0.7 --grid sorted \
         --steps "$c7s_steps" --interval "$c_interval"
-    # A candidate, not the model's (model-set.sh, candidate_runs): a fourth scale above the
-    # others, 0.85 on 2 ranks, 553 steps (about 0.7 s). With three scales cross-validation
-    # still chose interactions + cell moves or + owned particles in 6 of session 81's 15 jobs,
-    # and those jobs carried the sorted 2-rank dam break's miss (+10 to +13 %, +2.6 % where it
-    # chose + const); a step's fixed cost per particle falls as 1 / s^2, a cell move's as
-    # 1 / sqrt(s), so the candidates part most at the largest scales (a fourth scale below,
-    # 0.35, made it worse: model/NOTES.md, session 81). Validated beside in sorted-four-scales/.
-    sph 2 "cal_dambreak_s0.85_sorted_$1" --setup dambreak --scale 0.85 --grid sorted \
-        --steps "$c85s_steps" --interval "$c_interval"
     sph 2 "cal_still_s0.5_sorted_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     # Above the cores (every rank busy): the app's own time-sharing overhead at 1.5 ranks per
@@ -475,10 +468,6 @@ beside model_and_validate "$out/sorted-one-scale" "$rule" froude
 # Without Cell+Sorted's 1-thread dam breaks at 0.7 (sessions 58-80's calibration: two scales).
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.7_sorted_[abc]\.json$')
 beside model_and_validate "$out/sorted-two-scales" "$rule" froude
-# A candidate, not in use: with Cell+Sorted's 1-thread dam break at a fourth scale, 0.85 on 2
-# ranks (session 82; the runs are made in every job, model-set.sh's candidate_runs).
-mapfile -t cal_reports < <(all_cal_runs)
-beside model_and_validate "$out/sorted-four-scales" "$rule" froude
 mapfile -t cal_reports < <(model_runs)
 # Without the 2-thread dam breaks at scale 0.35 (sessions 37-51's calibration: at 2 threads
 # the dam break at 0.7 and the still tank at 0.5 only).

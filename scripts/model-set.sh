@@ -17,14 +17,13 @@
 # its list and table runs about twice as long as on the Intel host before. cs7_steps: Cell+Table's
 # still tank at 0.7 (about 10 ms steps), whose wait says how the jitter grows with the step.
 # c7s_steps: Cell+Sorted's 1-thread dam break at 0.7, as far in Froude time as the 0.25 one
-# (300 sqrt(0.7 / 0.25) = 502 steps), the reach the cost fit's points share. c85s_steps: the
-# same at 0.85 (300 sqrt(0.85 / 0.25) = 553 steps), a candidate's run (candidate_runs below).
+# (300 sqrt(0.7 / 0.25) = 502 steps), the reach the cost fit's points share.
 if [ "$quick" -eq 1 ]; then
     v_steps=40 v2_steps=20 vs_steps=40 c_steps=200 c5_steps=130 c35_steps=130 c7_steps=60
-    c25_steps=60 c7s_steps=100 c85s_steps=110 cs_steps=40 cs7_steps=20 interval=20 c_interval=10
+    c25_steps=60 c7s_steps=100 cs_steps=40 cs7_steps=20 interval=20 c_interval=10
 else
     v_steps=1000 v2_steps=500 vs_steps=300 c_steps=1500 c5_steps=1000 c35_steps=920 c7_steps=300
-    c25_steps=300 c7s_steps=500 c85s_steps=553 cs_steps=300 cs7_steps=160 interval=100 c_interval=20
+    c25_steps=300 c7s_steps=500 cs_steps=300 cs7_steps=160 interval=100 c_interval=20
 fi
 # A replay of a stored job predicts its runs' own length (scripts/replay-job.sh sets it).
 v_steps=${REPLAY_V_STEPS:-$v_steps}
@@ -34,21 +33,9 @@ v_steps=${REPLAY_V_STEPS:-$v_steps}
 # rule RULE, the time profile PROFILE and the fit weights WEIGHTS (relative unless given),
 # predict with the time-sharing form SHARING (replay unless given), validate; with the
 # reports listed in the arrays cal_reports and val_reports.
-# Calibration runs the job makes for a candidate model beside (scripts/model-node.sh), not the
-# model's: Cell+Sorted's 1-thread dam break at 0.85 on 2 ranks (session 82).
-candidate_runs='/cal_dambreak_s0\.85_sorted_[abc]\.json$'
-# Every calibration run the job made.
-all_cal_runs() {
-    ls "$runs"/cal_*.json
-}
-# The model's calibration runs: every round's (rounds a and b, and Cell+Sorted's c) but the
-# candidates'; all of them with MODEL_RUNS_ALL=1 (scripts/replay-job.sh: a candidate replayed).
+# The model's calibration runs: every round's (rounds a and b, and Cell+Sorted's c).
 model_runs() {
-    if [ "${MODEL_RUNS_ALL:-0}" = 1 ]; then
-        all_cal_runs
-    else
-        all_cal_runs | grep -v -E "$candidate_runs"
-    fi
+    ls "$runs"/cal_*.json
 }
 model_and_validate() {
     local dir=$1 rule=$2 profile=$3 weights=${4:-relative} sharing=${5:-replay}

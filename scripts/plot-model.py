@@ -1093,13 +1093,6 @@ def markdown(model, validation, args, out):
                          "drift within a run at its time since the run's start (predict "
                          "--run-drift on, calibrate's speed_gauge.run_drift; model/NOTES.md, "
                          f"session 79) on the same runs: {drift} (run-drift/validation.json).")
-        four = untuned("sorted-four-scales")
-        if four:
-            lines.append("A candidate not in use: Cell+Sorted's 1-thread dam break at a fourth "
-                         "calibration scale, 0.85 on 2 ranks (553 steps, rounds a, b and c; the "
-                         "job makes the runs and the model leaves them out; model/NOTES.md, "
-                         f"session 82) on the same runs: {four} "
-                         "(sorted-four-scales/validation.json).")
         if not_compared:
             # The --quick job runs 5 of the 17 comparison models (scripts/model-node.sh).
             lines.append("Tuned choices in use without their comparison model in this job (no "
