@@ -20,8 +20,8 @@ namespace {
 constexpr char rank_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'K', '1'};
 // 2: the rank records split comm by exchange (RankInterval::fields changed); 3: they carry the
 // CPU time before each shift and the exchange benchmark's prediction apart; 4: the speed
-// gauge's samples; 6: the core latency gauge's; 7: the search's candidates.
-constexpr char record_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'C', '7'};
+// gauge's samples; 6: the core latency gauge's.
+constexpr char record_magic[8] = {'S', 'P', 'H', 'C', 'K', 'R', 'C', '6'};
 
 // Native-endian binary writer: the files are read back by the same build on the same machine
 // (the manifest's commit is checked), so no portable encoding is needed.

@@ -245,7 +245,6 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
                               {"core_round_trip_s", r.core_round_trip_s},
                               {"core_round_trip_samples", r.core_round_trip_samples},
                               {"descents", r.descents},
-                              {"candidates", r.candidates},
                               {"rss_bytes", r.rss_bytes}};
             for (std::size_t k = 0; k < phase_keys.size(); ++k)
                 jr["timers"][phase_keys[k]] = r.timers[k];

@@ -243,36 +243,6 @@ TEST(StoredLists, CountDescentsPerParticle) {
     check_particle_descents<CellTable>();
 }
 
-// The search's candidates (the particles it looked at, whether in range or not, walls that skip
-// walls included) equal an O(N^2) count of the particles filed in the 3x3 cells around each owned
-// particle, at 1 and 2 threads; a particle with more dry walls around it costs more candidates
-// per interaction (model/NOTES.md, session 82).
-template <class G> void check_candidates() {
-    const Particles p = random_configuration(5, 500, 120);
-    std::uint64_t expected = 0;
-    for (std::size_t i = 0; i < p.owned(); ++i) {
-        const int ci = window.column_of(p.x[i]), ri = window.row_of(p.y[i]);
-        for (std::size_t j = 0; j < p.size(); ++j)
-            if (std::abs(window.column_of(p.x[j]) - ci) <= 1 &&
-                std::abs(window.row_of(p.y[j]) - ri) <= 1)
-                ++expected;
-    }
-    const TeamSize team;
-    for (int threads : {1, 2}) {
-        team.set(threads);
-        G grid;
-        NeighbourList nl;
-        grid.update(p, window);
-        nl.counts = find_neighbours(grid, p, window, cell, nl);
-        EXPECT_EQ(nl.counts.candidates, expected) << threads << " threads";
-        EXPECT_GT(nl.counts.candidates, nl.counts.interactions);
-    }
-}
-TEST(StoredLists, CountCandidatesAsBruteForce) {
-    check_candidates<CellList>();
-    check_candidates<CellTable>();
-}
-
 TEST(CellWindow, FilesOutsidePositionsInEdgeCells) {
     EXPECT_EQ(window.column_of(-5.0), 2);
     EXPECT_EQ(window.column_of(99.0), 9);

@@ -20,8 +20,7 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
     parts.resize(static_cast<std::size_t>(threads));
     const auto block = [&](int t) { return owned * static_cast<std::size_t>(t) / threads; };
     // Pass 1, the grid's work: candidates of the 3x3 cells within the radius, in cell order.
-    std::uint64_t candidates = 0;
-#pragma omp parallel num_threads(threads) reduction(+ : candidates)
+#pragma omp parallel num_threads(threads)
     {
         const int t = omp_get_thread_num();
         auto &mine = parts[static_cast<std::size_t>(t)];
@@ -35,7 +34,6 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
                 for (int r = std::max(ri - 1, w.row_begin); r <= std::min(ri + 1, w.row_end - 1);
                      ++r)
                     grid.for_each_in_cell(w.cell(c, r), p, [&](std::uint32_t j) {
-                        ++candidates;
                         if (j == i || (!fluid_i && p.kind[j] != Kind::fluid))
                             return;
                         const double dx = xi - p.x[j], dy = yi - p.y[j];
@@ -84,7 +82,7 @@ PairCounts find_neighbours(const G &grid, const Particles &p, const CellWindow &
     nl.index.reserve(nl.offsets[owned]);
     for (const auto &part : parts)
         nl.index.insert(nl.index.end(), part.begin(), part.end());
-    return {pairs, nl.index.size(), descents, sort_s, candidates};
+    return {pairs, nl.index.size(), descents, sort_s};
 }
 
 } // namespace sphperf::sph

@@ -15,10 +15,6 @@ struct PairCounts {
     std::uint64_t interactions = 0; // ordered pairs (i, j) contributing to an owned particle i
     std::uint64_t descents = 0;     // stored lists: neighbours found after one of larger id
     double sort_s = 0;              // stored lists: time spent ordering them by id
-    // Stored lists: particles the search looked at in the 3x3 cells of the owned particles (the
-    // scan's work, beside what it found): a rank holding dry walls or the water's dry side scans
-    // more per interaction than one whose slab cuts through the water (model/NOTES.md, session 82).
-    std::uint64_t candidates = 0;
 };
 
 struct NeighbourList {

@@ -35,7 +35,6 @@ struct RankInterval {
     double comm_hockney_s = 0;          // ... by ping-pong Hockney alone (thesis T_COMM_PREDICT)
     double descents = 0;         // neighbours found right after one of larger id (id sort work):
                                  // grows as the particles' memory order decays; 0 for sorted
-    double candidates = 0;       // particles the search looked at (PairCounts); 0 for sorted
     double rss_bytes = 0;        // resident set size at the interval's end (soak: stays flat)
     double overlap_s = 0;        // --overlap: compute run while ghost transfers were in flight
     double hidden_predict_s = 0; // ... and the predicted transfer time it hid (T_overlap)
@@ -59,7 +58,7 @@ struct RankInterval {
     }
 
     static constexpr std::size_t fields =
-        28 + static_cast<std::size_t>(Phase::count) + 4 * static_cast<std::size_t>(Shift::count);
+        27 + static_cast<std::size_t>(Phase::count) + 4 * static_cast<std::size_t>(Shift::count);
     std::array<double, fields> pack() const;
     static RankInterval unpack(const double *v);
 };

@@ -548,7 +548,7 @@ template <CellGrid Grid> void Simulation<Grid>::close_interval(std::int64_t step
     const double n = std::max(acc_.steps, 1.0);
     RankInterval out = acc_;
     for (double *v : {&out.virtual_, &out.ghost, &out.pairs, &out.interactions, &out.descents,
-                      &out.candidates, &out.exported, &out.cell_moves, &out.field_mean})
+                      &out.exported, &out.cell_moves, &out.field_mean})
         *v /= n;
     const auto packed = out.pack();
     const auto all = dom_.gather(std::vector<double>(packed.begin(), packed.end()));
@@ -775,7 +775,6 @@ template <CellGrid Grid> RunRecord Simulation<Grid>::run(const Observer &observe
         acc_.pairs += static_cast<double>(nb_.counts.pairs);
         acc_.interactions += static_cast<double>(nb_.counts.interactions);
         acc_.descents += static_cast<double>(nb_.counts.descents);
-        acc_.candidates += static_cast<double>(nb_.counts.candidates);
         add_column_counts();
         interactions_total_ += static_cast<double>(nb_.counts.interactions);
         acc_.exported += static_cast<double>(last_exported_);
