@@ -5,11 +5,13 @@
 // line, overwriting nothing.
 #include "run.hpp"
 #include "sphperf/sph/checkpoint.hpp"
+#include "sphperf/sph/config.hpp"
 #include "state.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -237,3 +239,78 @@ INSTANTIATE_TEST_SUITE_P(
                }},
         Broken{"ends_before", "--steps 100", "this run ends at step 100", [](const fs::path &) {}}),
     [](const auto &info) { return info.param.name; });
+
+// sph-scan-bench rebuilds every rank's slab window and grid from a checkpoint: the neighbours it
+// finds are exactly those of an O(N^2) search over the rank's particles (owned and transient),
+// in the order the run left them and in any other memory order.
+struct ScanCase {
+    std::string name, args;
+    int ranks;
+};
+void PrintTo(const ScanCase &c, std::ostream *os) {
+    *os << c.name;
+}
+class ScanBenchTest : public ::testing::TestWithParam<ScanCase> {};
+
+TEST_P(ScanBenchTest, FindsTheBruteForceNeighboursOfEveryRank) {
+    const ScanCase &c = GetParam();
+    const auto dir = scratch("scan_bench_" + c.name);
+    const auto ck = dir / "ck";
+    const auto made = sph_run(c.ranks, c.args + " --steps 200 --checkpoint " + ck.string());
+    ASSERT_EQ(made.code, 0) << made.err;
+    const sph::Manifest m = sph::read_manifest(ck);
+    sph::Physics phys;
+    phys.delta = m.delta;
+    phys.h = sph::Physics::h_factor * m.delta * std::sqrt(2.0);
+    const double r2 = phys.cell_size() * phys.cell_size();
+    std::vector<std::uint64_t> brute;
+    for (int r = 0; r < c.ranks; ++r) {
+        const auto path = ck / m.files[static_cast<std::size_t>(r)].name;
+        const sph::RankState s = sph::deserialise_rank(sph::read_file(path), path.string());
+        std::uint64_t n = 0;
+        for (std::size_t i = 0; i < s.owned; ++i)
+            for (std::size_t j = 0; j < s.x.size(); ++j) {
+                const bool fluid = s.kind[i] == static_cast<std::uint8_t>(sph::Kind::fluid) ||
+                                   s.kind[j] == static_cast<std::uint8_t>(sph::Kind::fluid);
+                const double dx = s.x[i] - s.x[j], dy = s.y[i] - s.y[j];
+                n += j != i && fluid && dx * dx + dy * dy < r2 ? 1 : 0;
+            }
+        brute.push_back(n);
+    }
+    EXPECT_GT(brute.front(), 0u);
+    for (const char *arrangement : {"as-saved", "random-order", "cell-order"}) {
+        const auto json = dir / (std::string(arrangement) + ".json");
+        const auto r =
+            run(bin("sph-scan-bench") + " --quiet --repeats 2 --checkpoint " + ck.string() +
+                " --arrangement " + arrangement + " --json " + json.string());
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto report = nlohmann::json::parse(slurp(json));
+        ASSERT_EQ(report["cases"].size(), static_cast<std::size_t>(c.ranks));
+        for (int k = 0; k < c.ranks; ++k)
+            EXPECT_EQ(report["cases"][k]["interactions"].get<std::uint64_t>(),
+                      brute[static_cast<std::size_t>(k)])
+                << arrangement << ", rank " << k;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Sph, ScanBenchTest,
+    ::testing::Values(ScanCase{"table_1", "--grid table", 1},
+                      ScanCase{"table_2", "--grid table", 2},
+                      ScanCase{"table_3", "--grid table", 3},
+                      ScanCase{"table_balanced_2", "--grid table --decomposition balanced", 2},
+                      ScanCase{"list_mirror_3", "--grid list --boundary mirror", 3}),
+    [](const auto &info) { return info.param.name; });
+
+TEST(ScanBench, RefusesACheckpointWithoutStoredListsInOneLine) {
+    const auto dir = scratch("scan_bench_sorted");
+    const auto ck = dir / "ck";
+    const auto made = sph_run(1, "--grid sorted --steps 100 --checkpoint " + ck.string());
+    ASSERT_EQ(made.code, 0) << made.err;
+    const auto r = run(bin("sph-scan-bench") + " --quiet --checkpoint " + ck.string() + " --json " +
+                       (dir / "s.json").string());
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(r.err_lines(), 1) << r.err;
+    EXPECT_NE(r.err.find("ran --grid sorted: expected list or table"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "s.json"));
+}
