@@ -47,7 +47,7 @@ Domain::Domain(MPI_Comm comm, int columns, double cell_size) : comm_(comm) {
 }
 
 CellWindow Domain::window(int cell_rows) const {
-    return {slab_.cell_size, slab_.begin - 1, slab_.end + 1, -1, cell_rows};
+    return slab_window(slab_.cell_size, slab_.begin, slab_.end, cell_rows);
 }
 
 namespace {

@@ -150,20 +150,15 @@ void load(std::vector<Case<Grid>> &cases, const std::filesystem::path &dir, cons
     const Geometry geo = make_geometry(cfg);
     const std::vector<int> cuts = m.cuts.empty() ? equal_cuts(m.ranks, geo.cell_columns) : m.cuts;
     for (int r = 0; r < m.ranks; ++r) {
-        const std::string name = step_dir_name(m.step) + "/rank_" +
-                                 (r < 10    ? "00"
-                                  : r < 100 ? "0"
-                                            : "") +
-                                 std::to_string(r) + ".bin";
-        const auto path = dir / name;
+        // The manifest names the rank files first, in rank order, then the record.
+        const auto path = dir / m.files.at(static_cast<std::size_t>(r)).name;
         const RankState s = deserialise_rank(read_file(path), path.string());
         Case<Grid> &k = cases.emplace_back();
         k.checkpoint = dir.string();
         k.rank = r;
         s.restore(k.p);
-        // The slab's window as sph's Domain::window builds it.
-        k.window = CellWindow{cfg.physics.cell_size(), cuts[static_cast<std::size_t>(r)] - 1,
-                              cuts[static_cast<std::size_t>(r) + 1] + 1, -1, geo.cell_rows};
+        k.window = slab_window(cfg.physics.cell_size(), cuts[static_cast<std::size_t>(r)],
+                               cuts[static_cast<std::size_t>(r) + 1], geo.cell_rows);
         rearrange(k.p, k.window, c, cfg.physics.delta, rng);
         if (c.arrangement == "as-saved")
             k.grid.restore_state(s.grid_state);

@@ -113,8 +113,7 @@ public:
     int rank() const { return slab_.rank; }
     int ranks() const { return slab_.ranks; }
     const Slab &slab() const { return slab_; }
-    // The cells this rank stores: its columns, one ghost column each side, rows from one
-    // below the floor up to the ceiling row.
+    // The cells this rank stores (slab_window of its columns).
     CellWindow window(int cell_rows) const;
 
     // Sends owned particles whose column now belongs to another rank; `forget` is told each id

@@ -39,6 +39,13 @@ struct CellWindow {
     int cell_of(double x, double y) const { return cell(column_of(x), row_of(y)); }
 };
 
+// The cells a rank stores for its slab [first_column, end_column): one ghost column each side,
+// rows from one below the floor up to the ceiling row. Domain::window's, and sph-scan-bench's
+// when it rebuilds a checkpointed rank.
+inline CellWindow slab_window(double cell_size, int first_column, int end_column, int cell_rows) {
+    return {cell_size, first_column - 1, end_column + 1, -1, cell_rows};
+}
+
 template <class G>
 concept CellGrid = requires(G g, const G cg, const Particles &p, const CellWindow &w,
                             std::int64_t id, void (*visit)(std::uint32_t)) {
