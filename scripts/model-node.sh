@@ -245,6 +245,16 @@ sorted_runs() {
         --steps "$c7s_steps" --interval "$c_interval"
     sph 2 "cal_still_s0.5_sorted_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
+    # A candidate, not the model's (model-set.sh, candidate_runs): the same still tank on 1 rank
+    # (about 0.3 s). The three scales' dam breaks cannot part a cost per step from a cost per
+    # particle: early in a dam break the water sits on rank 0 whatever the rank count, so each
+    # scale has one particle count per busy rank, and the interactions per particle move little
+    # between scales. A still tank on 1 and 2 ranks holds the scale (and the interactions per
+    # particle) and halves the particles per rank. Replayed on 24 jobs with three such runs
+    # made later (session 84) cross-validation chose + const in 23 of 24 (14 before); made in
+    # the job they are validated beside in sorted-still-one-rank/.
+    sph 1 "cal_still_s0.5_sorted_r1_$1" --setup still --scale 0.5 --grid sorted \
+        --steps "$cs_steps" --interval "$c_interval"
     # Above the cores (every rank busy): the app's own time-sharing overhead at 1.5 ranks per
     # core; other loads fall back to the exchange benchmark's. On one grid: the overhead is the
     # scheduler's, not the grid's (session 16: list 1.048/1.051, sorted 1.051/1.094, table
@@ -468,6 +478,10 @@ beside model_and_validate "$out/sorted-one-scale" "$rule" froude
 # Without Cell+Sorted's 1-thread dam breaks at 0.7 (sessions 58-80's calibration: two scales).
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.7_sorted_[abc]\.json$')
 beside model_and_validate "$out/sorted-two-scales" "$rule" froude
+# A candidate, not in use: with Cell+Sorted's still tank at 0.5 on 1 rank as well (session 84;
+# the runs are made in every job, model-set.sh's candidate_runs).
+mapfile -t cal_reports < <(all_cal_runs)
+beside model_and_validate "$out/sorted-still-one-rank" "$rule" froude
 mapfile -t cal_reports < <(model_runs)
 # Without the 2-thread dam breaks at scale 0.35 (sessions 37-51's calibration: at 2 threads
 # the dam break at 0.7 and the still tank at 0.5 only).
