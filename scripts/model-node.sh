@@ -240,20 +240,15 @@ sorted_runs() {
     # every scale. The sorted 2-rank runs were +6.9 % over 59 jobs (model/NOTES.md, session 81).
     # 500 steps: about 0.4 s. A fourth scale, at 0.35 (session 81) or 0.85 (session 82, blind
     # beside in ten jobs: the choice moved in one, the sorted 2-rank dam break -0.2 points),
-    # did not help: the candidates' held-out scores stay within 1 % of each other.
+    # did not help: the candidates' held-out scores stay within 1 % of each other. Nor did the
+    # still tank at 0.5 on 1 rank beside its 2-rank run (session 84, blind beside in five jobs):
+    # it settles the choice (+ const in all five) but moves the sorted dam breaks by only -1.0
+    # point and the sorted still tanks by -3.6 to -4.0 (the 1-rank run, with no ghost columns
+    # to sweep last, costs 5-7 % less per interaction at one host speed, where a step's fixed
+    # cost explains 3 %: model/NOTES.md, session 84).
     sph 2 "cal_dambreak_s0.7_sorted_$1" --setup dambreak --scale 0.7 --grid sorted \
         --steps "$c7s_steps" --interval "$c_interval"
     sph 2 "cal_still_s0.5_sorted_$1" --setup still --scale 0.5 --grid sorted \
-        --steps "$cs_steps" --interval "$c_interval"
-    # A candidate, not the model's (model-set.sh, candidate_runs): the same still tank on 1 rank
-    # (about 0.3 s). The three scales' dam breaks cannot part a cost per step from a cost per
-    # particle: early in a dam break the water sits on rank 0 whatever the rank count, so each
-    # scale has one particle count per busy rank, and the interactions per particle move little
-    # between scales. A still tank on 1 and 2 ranks holds the scale (and the interactions per
-    # particle) and halves the particles per rank. Replayed on 24 jobs with three such runs
-    # made later (session 84) cross-validation chose + const in 23 of 24 (14 before); made in
-    # the job they are validated beside in sorted-still-one-rank/.
-    sph 1 "cal_still_s0.5_sorted_r1_$1" --setup still --scale 0.5 --grid sorted \
         --steps "$cs_steps" --interval "$c_interval"
     # Above the cores (every rank busy): the app's own time-sharing overhead at 1.5 ranks per
     # core; other loads fall back to the exchange benchmark's. On one grid: the overhead is the
@@ -478,10 +473,6 @@ beside model_and_validate "$out/sorted-one-scale" "$rule" froude
 # Without Cell+Sorted's 1-thread dam breaks at 0.7 (sessions 58-80's calibration: two scales).
 mapfile -t cal_reports < <(model_runs | grep -v -E '/cal_dambreak_s0\.7_sorted_[abc]\.json$')
 beside model_and_validate "$out/sorted-two-scales" "$rule" froude
-# A candidate, not in use: with Cell+Sorted's still tank at 0.5 on 1 rank as well (session 84;
-# the runs are made in every job, model-set.sh's candidate_runs).
-mapfile -t cal_reports < <(all_cal_runs)
-beside model_and_validate "$out/sorted-still-one-rank" "$rule" froude
 mapfile -t cal_reports < <(model_runs)
 # Without the 2-thread dam breaks at scale 0.35 (sessions 37-51's calibration: at 2 threads
 # the dam break at 0.7 and the still tank at 0.5 only).

@@ -33,21 +33,9 @@ v_steps=${REPLAY_V_STEPS:-$v_steps}
 # rule RULE, the time profile PROFILE and the fit weights WEIGHTS (relative unless given),
 # predict with the time-sharing form SHARING (replay unless given), validate; with the
 # reports listed in the arrays cal_reports and val_reports.
-# Calibration runs the job makes for a candidate model beside (scripts/model-node.sh), not the
-# model's: Cell+Sorted's still tank at 0.5 on 1 rank (session 84).
-candidate_runs='/cal_still_s0\.5_sorted_r1_[abc]\.json$'
-# Every calibration run the job made.
-all_cal_runs() {
-    ls "$runs"/cal_*.json
-}
-# The model's calibration runs: every round's (rounds a and b, and Cell+Sorted's c) but the
-# candidates'; all of them with MODEL_RUNS_ALL=1 (scripts/replay-job.sh: a candidate replayed).
+# The model's calibration runs: every round's (rounds a and b, and Cell+Sorted's c).
 model_runs() {
-    if [ "${MODEL_RUNS_ALL:-0}" = 1 ]; then
-        all_cal_runs
-    else
-        all_cal_runs | grep -v -E "$candidate_runs"
-    fi
+    ls "$runs"/cal_*.json
 }
 model_and_validate() {
     local dir=$1 rule=$2 profile=$3 weights=${4:-relative} sharing=${5:-replay}

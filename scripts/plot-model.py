@@ -1093,13 +1093,6 @@ def markdown(model, validation, args, out):
                          "drift within a run at its time since the run's start (predict "
                          "--run-drift on, calibrate's speed_gauge.run_drift; model/NOTES.md, "
                          f"session 79) on the same runs: {drift} (run-drift/validation.json).")
-        one_rank = untuned("sorted-still-one-rank")
-        if one_rank:
-            lines.append("A candidate not in use: Cell+Sorted's still tank at 0.5 on 1 rank "
-                         "among the calibration runs too (300 steps, rounds a, b and c; the job "
-                         "makes the runs and the model leaves them out; model/NOTES.md, session "
-                         f"84) on the same runs: {one_rank} "
-                         "(sorted-still-one-rank/validation.json).")
         if not_compared:
             # The --quick job runs 5 of the 17 comparison models (scripts/model-node.sh).
             lines.append("Tuned choices in use without their comparison model in this job (no "

@@ -14,13 +14,12 @@
 # Environment: CAL_EXTRA, more calibrate options; PREDICT_EXTRA, more predict options (a job
 # stored before session 59, whose list and table memory-order record ends at 0.11 s, predicts
 # the scale-1 dam breaks with PREDICT_EXTRA="--memory-order-time froude"); REPLAY_RULE, the
-# compute-cost term rule (calibrate --term-selection; default the main job's, levelled-best);
-# MODEL_RUNS_ALL=1, a candidate's calibration runs too (model-set.sh's candidate_runs).
+# compute-cost term rule (calibrate --term-selection; default the main job's, levelled-best).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build="${SPHPERF_BUILD_DIR:-$root/build}"
 stage() { echo "== $*"; }
-usage() { sed -n '2,18p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+usage() { sed -n '2,17p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
 die() { echo "replay-job.sh: $*" >&2; exit 2; }
 runs="" machine="" commit="" host=vm out="" exclude="" include="" quick=0
 while [ $# -gt 0 ]; do
