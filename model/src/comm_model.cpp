@@ -156,6 +156,7 @@ ExchangeModel ExchangeModel::from_profile(const nlohmann::json &machine) {
         std::sort(s.points.begin(), s.points.end(), [](const auto &a, const auto &b) {
             return std::tie(a.mode, a.bytes, a.gap_s) < std::tie(b.mode, b.bytes, b.gap_s);
         });
+        s.tables = std::make_shared<const ShiftTables>(ShiftTables::of(s.points));
         m.sets_.push_back(std::move(s));
     }
     return m;
@@ -194,41 +195,51 @@ const char *mode_name(ShiftMode mode) {
     }
 }
 
-// y(gap) of one payload and kind, interpolated in log(gap).
-template <class Get>
-double along_gap(const std::vector<ExchangePoint> &pts, double bytes, ShiftMode mode, double gap_s,
-                 Get get) {
-    std::vector<std::pair<double, double>> xy;
-    for (const auto &p : pts)
-        if (p.bytes == bytes && p.mode == mode)
-            xy.emplace_back(std::log(std::max(p.gap_s, smallest_gap_s)), get(p));
-    std::sort(xy.begin(), xy.end());
-    return interpolate(xy, std::log(std::max(gap_s, smallest_gap_s)));
+} // namespace
+
+ShiftTables ShiftTables::of(const std::vector<ExchangePoint> &points) {
+    ShiftTables t;
+    for (const auto &p : points) {
+        // A payload joins its mode's list when it differs from the one before (the points are
+        // sorted by mode, payload and gap); its curve holds every point of that payload.
+        auto &curves = t.by_mode[static_cast<std::size_t>(p.mode)];
+        if (!curves.empty() && curves.back().bytes == p.bytes)
+            continue;
+        ShiftTables::Curve c{p.bytes, {}};
+        for (const auto &q : points)
+            if (q.bytes == p.bytes && q.mode == p.mode)
+                c.log_gap_mean.emplace_back(std::log(std::max(q.gap_s, smallest_gap_s)), q.mean_s);
+        std::sort(c.log_gap_mean.begin(), c.log_gap_mean.end());
+        curves.push_back(std::move(c));
+    }
+    return t;
+}
+
+namespace {
+// Mean seconds of one shift after gap_s carrying `bytes` (ExchangeModel::shift_seconds).
+double shift_seconds_in(const ShiftTables &t, double gap_s, double bytes, ShiftMode mode) {
+    const auto &curves = t.by_mode[static_cast<std::size_t>(mode)];
+    if (curves.empty())
+        throw std::logic_error(std::string("exchange set without ") + mode_name(mode) + " points");
+    const double log_gap = std::log(std::max(gap_s, smallest_gap_s));
+    auto at = [&](std::size_t k) { return interpolate(curves[k].log_gap_mean, log_gap); };
+    if (curves.size() == 1 || bytes <= curves.front().bytes)
+        return at(0);
+    std::size_t hi = 1;
+    while (hi + 1 < curves.size() && bytes > curves[hi].bytes)
+        ++hi;
+    const double b0 = curves[hi - 1].bytes, b1 = curves[hi].bytes;
+    const double y0 = at(hi - 1), y1 = at(hi);
+    // Beyond the largest payload the last slope goes on (never downward).
+    const double slope = std::max(0.0, (y1 - y0) / (b1 - b0));
+    return bytes <= b1 ? y0 + (y1 - y0) * (bytes - b0) / (b1 - b0) : y1 + slope * (bytes - b1);
 }
 } // namespace
 
 double ExchangeModel::shift_seconds(const ExchangeSet &set, double gap_s, double bytes,
                                     ShiftMode mode) {
-    std::vector<double> sizes;
-    for (const auto &p : set.points)
-        if (p.mode == mode && (sizes.empty() || sizes.back() != p.bytes))
-            sizes.push_back(p.bytes);
-    if (sizes.empty())
-        throw std::logic_error(std::string("exchange set without ") + mode_name(mode) + " points");
-    auto at = [&](double b) {
-        return along_gap(set.points, b, mode, gap_s,
-                         [](const ExchangePoint &p) { return p.mean_s; });
-    };
-    if (sizes.size() == 1 || bytes <= sizes.front())
-        return at(sizes.front());
-    std::size_t hi = 1;
-    while (hi + 1 < sizes.size() && bytes > sizes[hi])
-        ++hi;
-    const double b0 = sizes[hi - 1], b1 = sizes[hi];
-    const double y0 = at(b0), y1 = at(b1);
-    // Beyond the largest payload the last slope goes on (never downward).
-    const double slope = std::max(0.0, (y1 - y0) / (b1 - b0));
-    return bytes <= b1 ? y0 + (y1 - y0) * (bytes - b0) / (b1 - b0) : y1 + slope * (bytes - b1);
+    return set.tables ? shift_seconds_in(*set.tables, gap_s, bytes, mode)
+                      : shift_seconds_in(ShiftTables::of(set.points), gap_s, bytes, mode);
 }
 
 double ExchangeModel::app_shift_seconds(const ExchangeSet &set, double since_any_s,

@@ -1121,6 +1121,70 @@ double planted_blocking(double gap, double bytes) {
 }
 } // namespace
 
+// The tables a profile's set keeps (the app costs every shift from them) give what the points
+// give when arranged at each call, the way shift_seconds did before session 84: log-linear in
+// the gap between a payload's points, linear between payloads, the last slope on past them.
+TEST(Comm, AShiftCostsFromTheSetsTablesWhatItsPointsGive) {
+    using sphperf::model::ExchangeModel;
+    using sphperf::model::ExchangePoint;
+    using sphperf::model::ShiftMode;
+    std::mt19937 rng(84);
+    std::uniform_real_distribution<double> cost(1e-6, 5e-5), unit(0, 1);
+    const std::array<double, 3> payloads{16384.0, 64.0, 1024.0}; // unsorted in the report
+    const std::array<double, 4> gaps{3e-2, 0.0, 1e-3, 1e-4};
+    nlohmann::json pts = nlohmann::json::array();
+    for (const char *mode : {"following", "blocking", "overlapped"})
+        for (double bytes : payloads)
+            for (double gap : gaps)
+                pts.push_back({{"gap_s_mean", gap},
+                               {"payload_bytes", bytes},
+                               {"overlapped", std::string(mode) == "overlapped"},
+                               {"follows_shift", std::string(mode) == "following"},
+                               {"shift", {{"mean_s", cost(rng)}}}});
+    const auto m = ExchangeModel::from_profile(
+        {{"exchange", {{{"ranks", 2}, {"cores", 2}, {"points", pts}}}}});
+    const auto &set = m.set_for(2, 1, 2);
+    ASSERT_TRUE(set.tables);
+    // The reference, straight from the points: every point of a payload and mode, by log gap.
+    auto reference = [&](double gap, double bytes, ShiftMode mode) {
+        auto along = [&](double b) {
+            std::vector<std::pair<double, double>> xy;
+            for (const ExchangePoint &p : set.points)
+                if (p.bytes == b && p.mode == mode)
+                    xy.emplace_back(std::log(std::max(p.gap_s, 1e-7)), p.mean_s);
+            std::sort(xy.begin(), xy.end());
+            const double x = std::log(std::max(gap, 1e-7));
+            if (x <= xy.front().first)
+                return xy.front().second;
+            for (std::size_t i = 1; i < xy.size(); ++i)
+                if (x <= xy[i].first)
+                    return xy[i - 1].second + (xy[i].second - xy[i - 1].second) *
+                                                  (x - xy[i - 1].first) /
+                                                  (xy[i].first - xy[i - 1].first);
+            return xy.back().second;
+        };
+        const double b0 = bytes <= 1024 ? 64 : 1024, b1 = bytes <= 1024 ? 1024 : 16384;
+        if (bytes <= 64)
+            return along(64);
+        const double y0 = along(b0), y1 = along(b1);
+        return bytes <= b1 ? y0 + (y1 - y0) * (bytes - b0) / (b1 - b0)
+                           : y1 + std::max(0.0, (y1 - y0) / (b1 - b0)) * (bytes - b1);
+    };
+    auto untabled = set;
+    untabled.tables.reset();
+    for (int k = 0; k < 400; ++k) {
+        const double gap = std::exp(std::log(1e-8) + unit(rng) * (std::log(1.0) - std::log(1e-8)));
+        const double bytes = 1 + unit(rng) * 40000;
+        for (ShiftMode mode : {ShiftMode::blocking, ShiftMode::following, ShiftMode::overlapped}) {
+            const double want = reference(gap, bytes, mode);
+            EXPECT_NEAR(ExchangeModel::shift_seconds(set, gap, bytes, mode), want, 1e-15 * want)
+                << "gap " << gap << " bytes " << bytes;
+            EXPECT_EQ(ExchangeModel::shift_seconds(untabled, gap, bytes, mode),
+                      ExchangeModel::shift_seconds(set, gap, bytes, mode));
+        }
+    }
+}
+
 // Overlapped points (exchange --overlapped) are a table of their own: each kind interpolates
 // among its own points, the round overhead comes from the blocking ones, and a set without
 // overlapped points says so.

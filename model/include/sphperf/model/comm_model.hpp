@@ -5,6 +5,8 @@
 #include "sphperf/model/hockney.hpp"
 
 #include <algorithm>
+#include <array>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include <string>
@@ -64,9 +66,25 @@ struct ExchangePoint {
 // Which compute gap costs a blocking shift within the cores (app_shift_seconds).
 enum class GapRule { any_shift, own_kind_gap };
 
+// One set's points arranged for lookups: per mode the payloads measured (in the points' order),
+// and per payload its (log gap, mean seconds) sorted by gap. The app costs every shift it makes
+// with them (sph --machine); arranging the points anew each call took about 3 us, outside every
+// timer, 17 us of each step on 2 ranks (model/NOTES.md, session 84).
+struct ShiftTables {
+    struct Curve {
+        double bytes = 0;
+        std::vector<std::pair<double, double>> log_gap_mean;
+    };
+    std::array<std::vector<Curve>, 3> by_mode; // indexed by ShiftMode
+    static ShiftTables of(const std::vector<ExchangePoint> &points);
+};
+
 struct ExchangeSet {
     int ranks = 0, cores = 0;
     std::vector<ExchangePoint> points;
+    // Built from `points` by ExchangeModel::from_profile; a set assembled by hand has none, and
+    // shift_seconds then arranges its points at each call.
+    std::shared_ptr<const ShiftTables> tables;
     double load() const { return static_cast<double>(ranks) / cores; }
     bool has(ShiftMode mode) const {
         return std::any_of(points.begin(), points.end(),
