@@ -68,8 +68,8 @@ enum class GapRule { any_shift, own_kind_gap };
 
 // One set's points arranged for lookups: per mode the payloads measured (in the points' order),
 // and per payload its (log gap, mean seconds) sorted by gap. The app costs every shift it makes
-// with them (sph --machine); arranging the points anew each call took about 3 us, outside every
-// timer, 17 us of each step on 2 ranks (model/NOTES.md, session 84).
+// with them (sph --machine); arranging the points anew at each call cost about 11 us of each
+// step on 2 ranks, outside every timer (model/NOTES.md, session 84).
 struct ShiftTables {
     struct Curve {
         double bytes = 0;
