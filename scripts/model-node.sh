@@ -484,11 +484,9 @@ mapfile -t cal_reports < <(model_runs)
 CAL_EXTRA="--run-level fastest-repeat" beside model_and_validate "$out/fastest-repeat" "$rule" froude
 # The calibration runs as measured, without the speed gauge's normalisation (sessions 1-49).
 CAL_EXTRA="--speed-gauge off" beside model_and_validate "$out/no-speed-gauge" "$rule" froude
-# One speed factor per calibration run (session 50) instead of one per interval (session 51).
-CAL_EXTRA="--speed-gauge run" beside model_and_validate "$out/run-speed-gauge" "$rule" froude
-# The gauge of an interval as the window's compute-weighted mean (sessions 51-53) instead of its
-# median (one gauge sample hit by a host interrupt read 1.5-4 times the others).
-CAL_EXTRA="--speed-gauge interval-mean" beside model_and_validate "$out/mean-gauge-window" "$rule" froude
+# One speed factor per interval (sessions 51-84) instead of one per calibration run (session 50,
+# and since session 85).
+CAL_EXTRA="--speed-gauge interval" beside model_and_validate "$out/interval-speed-gauge" "$rule" froude
 # Each interval's gauge factor raised to the elasticity of the calibration runs' compute to the
 # gauge (calibrate --speed-gauge-elasticity fitted) instead of applied whole (model/NOTES.md,
 # session 70: the compute follows the gauge by 0.4-0.9 in logs, yet the

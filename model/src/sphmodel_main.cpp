@@ -22,7 +22,7 @@ struct Options {
     std::string time_profile = "froude";
     std::string fit_weights = "relative";
     std::string run_level = "pooled";
-    std::string speed_gauge = "interval";
+    std::string speed_gauge = "run";
     std::string gauge_reference = "pooled";
     std::string gauge_elasticity = "one";
     bool walls_term = false;
@@ -83,11 +83,13 @@ int run(int argc, char **argv) {
         ->capture_default_str()
         ->check(cli::IsMember({"fastest-repeat", "median", "pooled"}));
     cal->add_option("--speed-gauge", o.speed_gauge,
-                    "interval (each interval's times divided by the speed gauge around it, "
-                    "the median over +-1 interval, over the runs' median: the host's speed as "
-                    "the run went, sph --speed-gauge-every; applied when every run carries it), "
-                    "interval-mean (the same with the window's mean, sessions 51-53), run (one "
-                    "factor per run, session 50) or off (the runs as measured, sessions 1-49)")
+                    "run (each run's times divided by its whole speed gauge over the runs' "
+                    "median, sph --speed-gauge-every; applied when every run carries it: "
+                    "sessions 50 and 85 on), interval (each interval's by the gauge around it, "
+                    "the median over +-1 interval: sessions 51-84, whose calibration runs came "
+                    "out 1-2 % dearer than by their run's gauge, model/NOTES.md session 85), "
+                    "interval-mean (the same with the window's mean, sessions 51-53) or off "
+                    "(the runs as measured, sessions 1-49)")
         ->capture_default_str()
         ->check(cli::IsMember({"interval", "interval-mean", "run", "off"}));
     cal->add_option("--speed-gauge-reference", o.gauge_reference,
