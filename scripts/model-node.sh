@@ -487,9 +487,9 @@ CAL_EXTRA="--speed-gauge off" beside model_and_validate "$out/no-speed-gauge" "$
 # One speed factor per interval (sessions 51-84) instead of one per calibration run (session 50,
 # and since session 85).
 CAL_EXTRA="--speed-gauge interval" beside model_and_validate "$out/interval-speed-gauge" "$rule" froude
-# Each interval's gauge factor raised to the elasticity of the calibration runs' compute to the
-# gauge (calibrate --speed-gauge-elasticity fitted) instead of applied whole (model/NOTES.md,
-# session 70: the compute follows the gauge by 0.4-0.9 in logs, yet the
+# Each gauge factor (one per run since session 85) raised to the elasticity of the runs'
+# compute to the gauge (calibrate --speed-gauge-elasticity fitted) instead of applied whole
+# (model/NOTES.md, session 70: the compute follows the gauge by 0.4-0.9 in logs, yet the
 # replayed wall median was worse in six of ten jobs, the mean max too).
 CAL_EXTRA="--speed-gauge-elasticity fitted" beside model_and_validate "$out/gauge-elasticity-fitted" "$rule" froude
 # The jitter's deviation growing as the step's square root (sessions 15-60) instead of the form
