@@ -278,16 +278,22 @@ std::pair<std::size_t, std::size_t> CellSorted::thread_positions() const {
 }
 
 void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t to, int first_column,
-                             int last_column) {
+                             int last_column, bool count_fluid) {
     const auto rows = static_cast<std::size_t>(rows_);
     remote_columns_.resize(static_cast<std::size_t>(cols_));
     fluid_below_.resize(static_cast<std::size_t>(cols_) * (rows + 1));
     // One parallel region for both (a region more per step costs a wake-up of the team).
+    const std::size_t fluid_end = count_fluid ? p.fluid() : 0; // owned fluid: [0, fluid_end)
+    if (count_fluid)
+        fluid_count_.assign(static_cast<std::size_t>(std::max(omp_get_max_threads(), 1)),
+                            FluidCount{});
 #pragma omp parallel
     {
         const auto [s0, s1] = thread_positions();
+        std::size_t owned_fluid = 0;
         for (std::size_t s = std::max(s0, from); s < std::min(s1, to); ++s) {
             const std::uint32_t i = orig_[s];
+            owned_fluid += i < fluid_end;
             x_[s] = p.x[i];
             y_[s] = p.y[i];
             vx_[s] = p.vx[i];
@@ -300,6 +306,9 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
             fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
             remote_[s] = i < owned_ ? 0.0 : 1.0;
         }
+        if (const auto t = static_cast<std::size_t>(omp_get_thread_num());
+            count_fluid && t < fluid_count_.size())
+            fluid_count_[t].n = owned_fluid;
 #pragma omp barrier
         // This thread's block rounded to whole columns, as the sweep takes them: about the
         // positions it just copied, and as balanced as the blocks (a static split of the
@@ -336,25 +345,34 @@ void CellSorted::set_window(const CellWindow &w) {
 void CellSorted::prepare_sort(int threads, std::vector<std::uint32_t> &starts) {
     const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
     starts.resize(cells + 1);
-    fill_.resize(static_cast<std::size_t>(threads) * cells);
+    // sort_by_key leaves every entry 0; a new size starts from 0 too.
+    if (fill_.size() != static_cast<std::size_t>(threads) * cells)
+        fill_.assign(static_cast<std::size_t>(threads) * cells, 0);
     block_sizes_.resize(static_cast<std::size_t>(threads));
 }
 
 void CellSorted::sort_by_key(std::size_t first, std::size_t last, std::size_t base,
-                             std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out) {
+                             std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out,
+                             std::span<const std::size_t> split,
+                             std::span<const std::uint32_t> cuts) {
     // Each thread counts its share of the particles into its own histogram, the offsets are
-    // summed over equal shares of the cells, and each thread files its share. Within a cell the
+    // summed over shares of the cells, and each thread files its share. Within a cell the
     // threads' shares follow in thread order, so the result is the serial stable sort's. (Each
     // thread scanning every key for its block of cells took as long at 2 threads as at 1.)
     const auto cells = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
     const auto t = static_cast<std::size_t>(omp_get_thread_num());
     const auto team = static_cast<std::size_t>(omp_get_num_threads());
     const std::size_t n = last - first;
-    const std::size_t i0 = first + n * t / team, i1 = first + n * (t + 1) / team;
-    const std::size_t c0 = cells * t / team, c1 = cells * (t + 1) / team;
+    const bool by_split = split.size() == team + 1 && split.back() == n;
+    const bool by_cuts = cuts.size() == team + 1 && cuts.back() == cells;
+    const std::size_t i0 = first + (by_split ? split[t] : n * t / team),
+                      i1 = first + (by_split ? split[t + 1] : n * (t + 1) / team);
+    const std::size_t c0 = by_cuts ? cuts[t] : cells * t / team,
+                      c1 = by_cuts ? cuts[t + 1] : cells * (t + 1) / team;
     std::uint32_t *const mine = fill_.data() + t * cells;
     const std::uint32_t *const keys = key_.data();
-    std::fill(mine, mine + cells, 0);
+    // The histograms are 0 on entry (prepare_sort, and each thread clears what it used below):
+    // no pass writes a line of cells its particles do not touch.
     for (std::size_t i = i0; i < i1; ++i)
         ++mine[keys[i]];
 #pragma omp barrier
@@ -370,13 +388,18 @@ void CellSorted::sort_by_key(std::size_t first, std::size_t last, std::size_t ba
     for (std::size_t c = c0; c < c1; ++c) {
         starts[c] = static_cast<std::uint32_t>(at);
         for (std::size_t u = 0; u < team; ++u)
-            at += std::exchange(fill_[u * cells + c], static_cast<std::uint32_t>(at));
+            if (const std::uint32_t k = fill_[u * cells + c]; k != 0) {
+                fill_[u * cells + c] = static_cast<std::uint32_t>(at);
+                at += k;
+            }
     }
     if (t + 1 == team)
         starts[cells] = static_cast<std::uint32_t>(at);
 #pragma omp barrier
     for (std::size_t i = i0; i < i1; ++i)
         out[mine[keys[i]]++] = static_cast<std::uint32_t>(i);
+    for (std::size_t i = i0; i < i1; ++i)
+        mine[keys[i]] = 0;
 }
 
 void CellSorted::reorder(Particles &p, const CellWindow &w) {
@@ -420,12 +443,28 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     checks_.assign(static_cast<std::size_t>(threads), Checks{});
     const auto edge_rows = static_cast<std::uint32_t>(west > 0 ? rows_ : 0);
     const auto east_edge = static_cast<std::uint32_t>(east > 0 ? last_column : cells);
+    // The threads' particles: the last update's fluid split where it still fits (the fluid by
+    // the blocks' cells, the walls and any transient with the last thread), so that keys,
+    // counts and filing stay on the core of the cells, as the blocks of the last cut do for the
+    // offsets; else equal shares.
+    sort_split_.clear();
+    if (fluid_split_.size() == static_cast<std::size_t>(threads) + 1 &&
+        fluid_split_.back() == p.fluid()) {
+        sort_split_ = fluid_split_;
+        sort_split_.back() = n;
+    }
+    const bool cut = blocks_.size() == static_cast<std::size_t>(threads) + 1 &&
+                     blocks_.back() == cells && threads_ == threads;
+    const std::span<const std::uint32_t> cuts =
+        cut ? std::span<const std::uint32_t>(blocks_) : std::span<const std::uint32_t>{};
     // One region for the keys and the sort (a region more per step costs a wake-up of the team).
 #pragma omp parallel num_threads(threads)
     {
         const auto t = static_cast<std::size_t>(omp_get_thread_num());
         const auto team = static_cast<std::size_t>(omp_get_num_threads());
-        const std::size_t i0 = n * t / team, i1 = n * (t + 1) / team;
+        const bool by_split = sort_split_.size() == team + 1;
+        const std::size_t i0 = by_split ? sort_split_[t] : n * t / team,
+                          i1 = by_split ? sort_split_[t + 1] : n * (t + 1) / team;
         // The keys, then the checks as flags: both loops vectorise.
         for (std::size_t i = i0; i < i1; ++i)
             key_[i] = key_of(p.x[i], p.y[i]);
@@ -437,7 +476,7 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
         for (std::size_t i = i0; i < std::min(i1, n - 1); ++i)
             descending |= static_cast<unsigned>(p.id[i] >= p.id[i + 1]);
         checks_[t] = {edge != 0, other_mass != 0, descending != 0};
-        sort_by_key(0, n, west, start_, orig_);
+        sort_by_key(0, n, west, start_, orig_, sort_split_, cuts);
     }
     Checks all;
     for (const Checks &c : checks_) {
@@ -460,7 +499,10 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
         v->resize(n + west + east);
     if constexpr (pair_records)
         records_.resize(record_size * (n + west + east));
-    copy_fields(p, west, west + n, 0, cols_);
+    copy_fields(p, west, west + n, 0, cols_, true);
+    fluid_split_.assign(1, 0);
+    for (const FluidCount &c : fluid_count_)
+        fluid_split_.push_back(fluid_split_.back() + c.n);
     moves_ = n + west + east; // every particle is filed anew each step
     // Density and pressure are copied by refresh_density once they are final for the pass
     // that reads them (the density pass reads neither).

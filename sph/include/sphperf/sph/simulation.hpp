@@ -334,10 +334,18 @@ void Simulation<Grid>::rebalance(std::int64_t step, const std::vector<double> &c
 }
 
 template <CellGrid Grid> void Simulation<Grid>::step(std::int64_t s) {
+    // The threads' shares of the fluid in the kicks and the drift: the grid's blocks where it
+    // has them (Cell+Sorted), so that each thread writes the lines it reads in its block.
+    const auto split = [this] {
+        if constexpr (requires { grid_.fluid_split(); })
+            return grid_.fluid_split();
+        else
+            return std::span<const std::size_t>{};
+    };
     {
         ScopedPhase t(step_timers_, Phase::integrate);
-        half_kick(p_, cfg_.dt);
-        drift(p_, cfg_.dt);
+        half_kick(p_, cfg_.dt, split());
+        drift(p_, cfg_.dt, split());
     }
     if (cfg_.boundary == BoundaryKind::mirror) {
         ScopedPhase t(step_timers_, Phase::boundary);
@@ -369,7 +377,7 @@ template <CellGrid Grid> void Simulation<Grid>::step(std::int64_t s) {
         compute_forces();
     }
     ScopedPhase t(step_timers_, Phase::integrate);
-    half_kick(p_, cfg_.dt);
+    half_kick(p_, cfg_.dt, split());
 }
 
 template <CellGrid Grid> void Simulation<Grid>::sample_physics(double time) {

@@ -27,6 +27,7 @@
 #include <functional>
 #include <memory>
 #include <new>
+#include <span>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -160,6 +161,13 @@ public:
     // kept for them (--overlap), else the columns holding any.
     void refresh_ghost_density(const Particles &p);
     View view() const;
+    // The owned fluid particles by the threads' blocks of the last update: thread t's block
+    // holds split[t + 1] - split[t] of them (team + 1 entries, split.back() = fluid). The
+    // per-particle passes outside the grid (kicks, drift) take index ranges of these sizes: the
+    // setup numbers the fluid column by column, so index ranges then hold about the particles
+    // of each thread's cells, and the lines a thread writes there are the ones it reads in its
+    // block (sph/NOTES.md, session 86).
+    std::span<const std::size_t> fluid_split() const { return fluid_split_; }
     // A thread's seconds in a pair pass and the cost (candidates examined) of the cells it
     // went through (inside the parallel region; each thread writes its own entry): the next
     // cut_blocks gives the threads shares of the cost by how fast they got through it.
@@ -228,14 +236,23 @@ private:
     // last_column) anew (remote_columns_, fluid_below_): the density pass counts remote
     // partners in the columns holding some only, and a wall particle looks at fluid only.
     void copy_fields(const Particles &p, std::size_t from, std::size_t to, int first_column,
-                     int last_column);
+                     int last_column, bool count_fluid = false);
     // Stable counting sort of [first, last) by key_: starts[c] becomes the first position of
     // cell c (cells + 1 entries, counted from `base`), out[starts[c]...] its indices in order.
     // Called by every thread of a parallel region (prepare_sort before it, for its team size);
-    // it ends without a barrier.
+    // it ends without a barrier. Thread t takes the indices [first + split[t], first +
+    // split[t + 1]) (team + 1 entries in order; empty: equal shares) and sums the offsets of
+    // cells [cuts[t], cuts[t + 1]) (empty: equal shares). The histograms are 0 between calls,
+    // the offsets are written only where a thread has particles, and each thread clears its own
+    // entries after filing: with a split that follows the cuts (update: the fluid split and the
+    // blocks), a thread's histogram lines stay on its core, where equal shares, a full zeroing
+    // and a write to every entry had each core fetch half of the other's every step
+    // (sph/NOTES.md, session 86).
     void prepare_sort(int threads, std::vector<std::uint32_t> &starts);
     void sort_by_key(std::size_t first, std::size_t last, std::size_t base,
-                     std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out);
+                     std::vector<std::uint32_t> &starts, std::vector<std::uint32_t> &out,
+                     std::span<const std::size_t> split = {},
+                     std::span<const std::uint32_t> cuts = {});
     void sort_cells_by_id(const Particles &p, std::size_t first_cell, std::size_t last_cell);
     // Cuts the cells into one contiguous block per thread, of equal candidates examined (the
     // particles of a cell times the candidates in the ranges around it) weighted by the
@@ -292,6 +309,12 @@ private:
         bool descending = false; // a particle whose id is not below the next one's
     };
     std::vector<Checks> checks_;
+    struct alignas(64) FluidCount { // copy_fields', per thread: one cache line each
+        std::size_t n = 0;
+    };
+    std::vector<FluidCount> fluid_count_;
+    std::vector<std::size_t> fluid_split_;   // fluid_split()
+    std::vector<std::size_t> sort_split_;    // update's particles per thread (empty: equal)
     std::vector<std::uint64_t> cost_;        // cut_blocks': candidates examined in cells [0, c)
     std::vector<std::uint64_t> block_costs_; // cut_blocks': each thread's share of them
     int threads_ = 0;
