@@ -455,20 +455,34 @@ template <CellGrid Grid> void Simulation<Grid>::check_state(std::int64_t step) c
     constexpr double big = std::numeric_limits<double>::max();
     const double *px = p_.x.data(), *py = p_.y.data(), *vx = p_.vx.data(), *vy = p_.vy.data(),
                  *rho = p_.rho.data();
+    // The fluid in the threads' shares of the kicks (the grid's blocks where it has them: the
+    // lines were last written on the same core), the walls in static shares.
+    std::span<const std::size_t> split;
+    if constexpr (requires { grid_.fluid_split(); })
+        split = grid_.fluid_split();
     unsigned any = 0;
-#pragma omp parallel for schedule(static) reduction(| : any)
-    for (std::size_t i = 0; i < owned; ++i) {
-        const double x = px[i], y = py[i];
-        const unsigned finite = static_cast<unsigned>(std::abs(x) <= big) &
-                                static_cast<unsigned>(std::abs(y) <= big) &
-                                static_cast<unsigned>(std::abs(vx[i]) <= big) &
-                                static_cast<unsigned>(std::abs(vy[i]) <= big) &
-                                static_cast<unsigned>(std::abs(rho[i]) <= big);
-        const unsigned inside =
-            static_cast<unsigned>(i >= fluid) |
-            (static_cast<unsigned>(x >= 0) & static_cast<unsigned>(x <= length) &
-             static_cast<unsigned>(y >= 0));
-        any |= (finite & inside) ^ 1u;
+    const auto scan = [&](std::size_t begin, std::size_t end) {
+        unsigned bad = 0;
+        for (std::size_t i = begin; i < end; ++i) {
+            const double x = px[i], y = py[i];
+            const unsigned finite = static_cast<unsigned>(std::abs(x) <= big) &
+                                    static_cast<unsigned>(std::abs(y) <= big) &
+                                    static_cast<unsigned>(std::abs(vx[i]) <= big) &
+                                    static_cast<unsigned>(std::abs(vy[i]) <= big) &
+                                    static_cast<unsigned>(std::abs(rho[i]) <= big);
+            const unsigned inside =
+                static_cast<unsigned>(i >= fluid) |
+                (static_cast<unsigned>(x >= 0) & static_cast<unsigned>(x <= length) &
+                 static_cast<unsigned>(y >= 0));
+            bad |= (finite & inside) ^ 1u;
+        }
+        return bad;
+    };
+#pragma omp parallel reduction(| : any)
+    {
+        const auto [f0, f1] = fluid_share(p_, split, static_share(fluid));
+        const auto [w0, w1] = static_share(owned - fluid);
+        any |= scan(f0, f1) | scan(fluid + w0, fluid + w1);
     }
     if (any == 0)
         return;
