@@ -163,10 +163,10 @@ public:
     View view() const;
     // The owned fluid particles by the threads' blocks of the last update: thread t's block
     // holds split[t + 1] - split[t] of them (team + 1 entries, split.back() = fluid). The
-    // per-particle passes outside the grid (kicks, drift) take index ranges of these sizes: the
-    // setup numbers the fluid column by column, so index ranges then hold about the particles
-    // of each thread's cells, and the lines a thread writes there are the ones it reads in its
-    // block (sph/NOTES.md, session 86).
+    // per-particle passes (kicks, drift, state check, the next update's sort) take index
+    // ranges of these sizes: the setup numbers the fluid column by column, so index ranges then
+    // hold about the particles of each thread's cells, and the lines a thread writes there are
+    // the ones it reads in its block (sph/NOTES.md, session 86).
     std::span<const std::size_t> fluid_split() const { return fluid_split_; }
     // A thread's seconds in a pair pass and the cost (candidates examined) of the cells it
     // went through (inside the parallel region; each thread writes its own entry): the next
