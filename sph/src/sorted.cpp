@@ -284,6 +284,9 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
     fluid_below_.resize(static_cast<std::size_t>(cols_) * (rows + 1));
     // One parallel region for both (a region more per step costs a wake-up of the team).
     const std::size_t fluid_end = count_fluid ? p.fluid() : 0; // owned fluid: [0, fluid_end)
+    // Only what the passes read (View): the masses where they differ, the velocities where
+    // the pair loops take them from here rather than from the records.
+    const bool masses = common_mass_ == 0;
     if (count_fluid)
         fluid_count_.assign(static_cast<std::size_t>(std::max(omp_get_max_threads(), 1)),
                             FluidCount{});
@@ -296,13 +299,15 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
             owned_fluid += i < fluid_end;
             x_[s] = p.x[i];
             y_[s] = p.y[i];
-            vx_[s] = p.vx[i];
-            vy_[s] = p.vy[i];
             if constexpr (pair_records) {
                 records_[record_size * s] = static_cast<PairReal>(p.vx[i]);
                 records_[record_size * s + 1] = static_cast<PairReal>(p.vy[i]);
+            } else {
+                vx_[s] = p.vx[i];
+                vy_[s] = p.vy[i];
             }
-            mass_[s] = p.mass[i];
+            if (masses)
+                mass_[s] = p.mass[i];
             fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
             remote_[s] = i < owned_ ? 0.0 : 1.0;
         }
@@ -495,10 +500,18 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     // them), so is every cell.
     if (all.descending)
         sort_cells_by_id(p, 0, cells);
-    for (auto *v : {&x_, &y_, &vx_, &vy_, &rho_, &p_over_rho2_, &mass_, &fluid_, &remote_})
+    for (auto *v : {&x_, &y_, &rho_, &p_over_rho2_, &fluid_, &remote_})
         v->resize(n + west + east);
+    // The sorted velocities and masses only where a pass reads them (copy_fields): with one
+    // mass and the pair records, 24 bytes a particle fewer to write every step. Writing the
+    // sorted copy is what the vCPUs' far mode charges (sph/NOTES.md, session 87).
     if constexpr (pair_records)
         records_.resize(record_size * (n + west + east));
+    else
+        for (auto *v : {&vx_, &vy_})
+            v->resize(n + west + east);
+    if (common_mass_ == 0)
+        mass_.resize(n + west + east);
     copy_fields(p, west, west + n, 0, cols_, true);
     fluid_split_.assign(1, 0);
     for (const FluidCount &c : fluid_count_)
@@ -553,6 +566,18 @@ void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
     // Only the edge columns changed.
     copy_fields(p, 0, west_, 0, 1);
     copy_fields(p, west_ + local_, west_ + local_ + east_, cols_ - 1, cols_);
+}
+
+void CellSorted::refresh_mass(const Particles &p) {
+    if (common_mass_ == 0)
+        return; // copy_fields keeps them
+    mass_.resize(orig_.size());
+#pragma omp parallel
+    {
+        const auto [s0, s1] = thread_positions();
+        for (std::size_t s = s0; s < s1; ++s)
+            mass_[s] = p.mass[orig_[s]];
+    }
 }
 
 void CellSorted::refresh_density(const Particles &p) {
@@ -1390,7 +1415,8 @@ density_cell(Particles &p, const CellSorted::View &v, const PassConstants &pc, i
             for (int b = 0; b < n; ++b) {
                 const std::size_t i = batch.self[b];
                 const PackedCandidates &pack = batch.pack[b];
-                p.drho[v.orig[i]] = density_rate(v, view_of(pack), pc.k, pc.back, v.vx[i], v.vy[i]);
+                const std::uint32_t o = v.orig[i];
+                p.drho[o] = density_rate(v, view_of(pack), pc.k, pc.back, p.vx[o], p.vy[o]);
                 interactions += pack.in_range - (fluid ? 1 : 0);
                 remote += pack.remote;
                 if (fluid)
@@ -1404,12 +1430,13 @@ density_cell(Particles &p, const CellSorted::View &v, const PassConstants &pc, i
                                             const PassConstants &pc, std::size_t i,
                                             const PackView &pack) {
     const auto real = [](double x) { return static_cast<PairReal>(x); };
-    const ForceParticle<PairReal> fi{real(v.vx[i]), real(v.vy[i]), real(v.rho[i]),
+    const std::uint32_t o = v.orig[i];
+    const ForceParticle<PairReal> fi{real(p.vx[o]), real(p.vy[o]), real(v.rho[i]),
                                      real(v.p_over_rho2[i])};
     const Force<double> a = v.common_mass > 0 ? force_sum<true>(v, pack, pc.force, pc.k, fi)
                                               : force_sum<false>(v, pack, pc.force, pc.k, fi);
-    p.ax[v.orig[i]] = a.x;
-    p.ay[v.orig[i]] = a.y - pc.gravity;
+    p.ax[o] = a.x;
+    p.ay[o] = a.y - pc.gravity;
 }
 
 // Wall particles do not move.
@@ -1690,6 +1717,7 @@ void force_held_columns(Particles &p, SortedNeighbours &nb, const Physics &phys)
 
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {
     nb.grid->refresh_density(p);
+    nb.grid->refresh_mass(p);
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();
