@@ -390,13 +390,30 @@ void CellSorted::sort_by_key(std::size_t first, std::size_t last, std::size_t ba
     std::size_t at = base;
     for (std::size_t u = 0; u < t; ++u)
         at += block_sizes_[u];
-    for (std::size_t c = c0; c < c1; ++c) {
-        starts[c] = static_cast<std::uint32_t>(at);
+    // In runs of cells: most of a tank is empty, and a run whose histograms are all 0 is only
+    // its starts (a branch per cell and thread cost about 2 ns a cell, 12 us of a 2-thread step
+    // at scale 1 on the thread with the dry cells).
+    constexpr std::size_t run = 16;
+    for (std::size_t r0 = c0; r0 < c1; r0 += run) {
+        const std::size_t r1 = std::min(r0 + run, c1);
+        std::uint32_t any = 0;
         for (std::size_t u = 0; u < team; ++u)
-            if (const std::uint32_t k = fill_[u * cells + c]; k != 0) {
-                fill_[u * cells + c] = static_cast<std::uint32_t>(at);
-                at += k;
-            }
+            for (std::size_t c = r0; c < r1; ++c)
+                any |= fill_[u * cells + c];
+        if (any == 0) {
+            std::fill(starts.begin() + static_cast<std::ptrdiff_t>(r0),
+                      starts.begin() + static_cast<std::ptrdiff_t>(r1),
+                      static_cast<std::uint32_t>(at));
+            continue;
+        }
+        for (std::size_t c = r0; c < r1; ++c) {
+            starts[c] = static_cast<std::uint32_t>(at);
+            for (std::size_t u = 0; u < team; ++u)
+                if (const std::uint32_t k = fill_[u * cells + c]; k != 0) {
+                    fill_[u * cells + c] = static_cast<std::uint32_t>(at);
+                    at += k;
+                }
+        }
     }
     if (t + 1 == team)
         starts[cells] = static_cast<std::uint32_t>(at);
