@@ -241,8 +241,9 @@ private:
     // Copies sorted positions [from, to) from p, then marks columns [first_column,
     // last_column) anew (remote_columns_, fluid_below_): the density pass counts remote
     // partners in the columns holding some only, and a wall particle looks at fluid only.
+    // `remote` false: every position is owned and remote_ already holds zeros (not written).
     void copy_fields(const Particles &p, std::size_t from, std::size_t to, int first_column,
-                     int last_column, bool count_fluid = false);
+                     int last_column, bool count_fluid = false, bool remote = true);
     // Stable counting sort of [first, last) by key_: starts[c] becomes the first position of
     // cell c (cells + 1 entries, counted from `base`), out[starts[c]...] its indices in order.
     // Called by every thread of a parallel region (prepare_sort before it, for its team size);
@@ -330,6 +331,9 @@ private:
     int cols_ = 0, rows_ = 0;
     std::size_t owned_ = 0, moves_ = 0;
     double common_mass_ = 0; // View::common_mass
+    // remote_ holds zeros only: true after an update with no ghost slots and no particle
+    // beyond the owned ones (one rank without mirrors), whose copy then skips writing them.
+    bool remote_zero_ = false;
     Sweep sweep_;
 };
 
