@@ -518,7 +518,7 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     // them), so is every cell.
     if (all.descending)
         sort_cells_by_id(p, 0, cells);
-    for (auto *v : {&x_, &y_, &rho_, &p_over_rho2_, &fluid_, &remote_})
+    for (auto *v : {&x_, &y_, &rho_, &fluid_, &remote_})
         v->resize(n + west + east);
     // The sorted velocities and masses only where a pass reads them (copy_fields): with one
     // mass and the pair records, 24 bytes a particle fewer to write every step. Writing the
@@ -526,7 +526,7 @@ void CellSorted::update(const Particles &p, const CellWindow &w, std::size_t wes
     if constexpr (pair_records)
         records_.resize(record_size * (n + west + east));
     else
-        for (auto *v : {&vx_, &vy_})
+        for (auto *v : {&vx_, &vy_, &p_over_rho2_})
             v->resize(n + west + east);
     if (common_mass_ == 0)
         mass_.resize(n + west + east);
@@ -591,15 +591,18 @@ void CellSorted::add_ghosts(const Particles &p, std::size_t first) {
     copy_fields(p, west_ + local_, west_ + local_ + east_, cols_ - 1, cols_);
 }
 
-void CellSorted::refresh_mass(const Particles &p) {
-    if (common_mass_ == 0)
-        return; // copy_fields keeps them
-    mass_.resize(orig_.size());
+void CellSorted::refresh_filter_fields(const Particles &p) {
+    const bool masses = common_mass_ != 0; // else copy_fields keeps them
+    if (masses)
+        mass_.resize(orig_.size());
 #pragma omp parallel
     {
         const auto [s0, s1] = thread_positions();
         for (std::size_t s = s0; s < s1; ++s)
-            mass_[s] = p.mass[orig_[s]];
+            rho_[s] = p.rho[orig_[s]];
+        if (masses)
+            for (std::size_t s = s0; s < s1; ++s)
+                mass_[s] = p.mass[orig_[s]];
     }
 }
 
@@ -624,13 +627,17 @@ void CellSorted::refresh_ghost_density(const Particles &p) {
 }
 
 void CellSorted::refresh_density(const Particles &p, std::size_t from, std::size_t to) {
+    // Only what the pair loops read: with the records 16 bytes a particle fewer to write every
+    // step than the doubles too (sph/NOTES.md, session 88).
     for (std::size_t s = from; s < to; ++s) {
         const double rho = p.rho[orig_[s]];
-        rho_[s] = rho;
-        p_over_rho2_[s] = p.p[orig_[s]] / (rho * rho);
+        const double p_over_rho2 = p.p[orig_[s]] / (rho * rho);
         if constexpr (pair_records) {
             records_[record_size * s + 2] = static_cast<PairReal>(rho);
-            records_[record_size * s + 3] = static_cast<PairReal>(p_over_rho2_[s]);
+            records_[record_size * s + 3] = static_cast<PairReal>(p_over_rho2);
+        } else {
+            rho_[s] = rho;
+            p_over_rho2_[s] = p_over_rho2;
         }
     }
 }
@@ -1454,8 +1461,17 @@ density_cell(Particles &p, const CellSorted::View &v, const PassConstants &pc, i
                                             const PackView &pack) {
     const auto real = [](double x) { return static_cast<PairReal>(x); };
     const std::uint32_t o = v.orig[i];
-    const ForceParticle<PairReal> fi{real(p.vx[o]), real(p.vy[o]), real(v.rho[i]),
-                                     real(v.p_over_rho2[i])};
+    // Its own density and P / rho^2 as refresh_density left them for its neighbours: with the
+    // records their values (the doubles are not kept then), else the doubles.
+    PairReal rho, p_over_rho2;
+    if constexpr (pair_records) {
+        rho = v.records[4 * i + 2];
+        p_over_rho2 = v.records[4 * i + 3];
+    } else {
+        rho = real(v.rho[i]);
+        p_over_rho2 = real(v.p_over_rho2[i]);
+    }
+    const ForceParticle<PairReal> fi{real(p.vx[o]), real(p.vy[o]), rho, p_over_rho2};
     const Force<double> a = v.common_mass > 0 ? force_sum<true>(v, pack, pc.force, pc.k, fi)
                                               : force_sum<false>(v, pack, pc.force, pc.k, fi);
     p.ax[o] = a.x;
@@ -1739,8 +1755,7 @@ void force_held_columns(Particles &p, SortedNeighbours &nb, const Physics &phys)
 }
 
 void shepard_filter(Particles &p, SortedNeighbours &nb, const Physics &phys) {
-    nb.grid->refresh_density(p);
-    nb.grid->refresh_mass(p);
+    nb.grid->refresh_filter_fields(p);
     const CellSorted::View v = nb.grid->view();
     const BranchFreeKernel k(phys.kernel());
     const double r2max = phys.cell_size() * phys.cell_size();

@@ -18,10 +18,11 @@ constexpr double bytes_per_interaction = 4 + 2 * 4 + 4;
 // leaves them out, and the filter refreshes them).
 // Where sph builds its AVX2 pair loops (sph/sorted.hpp pair_records, the same condition; sph
 // checks the two agree), vx, vy, rho and P/rho^2 as a 16-byte record of floats (the pair
-// terms' precision, sph PairReal) instead of the double vx and vy (since session 87).
+// terms' precision, sph PairReal) instead of the double vx and vy (since session 87) and
+// P/rho^2 (since session 88; rho stays, for the Shepard filter).
 #if defined(SPHPERF_AVX2_KERNELS)
 constexpr double sorted_record_bytes = 4 * 4;
-constexpr double sorted_copy_doubles = 7;
+constexpr double sorted_copy_doubles = 6;
 #else
 constexpr double sorted_record_bytes = 0;
 constexpr double sorted_copy_doubles = 9;

@@ -100,9 +100,10 @@ public:
 
     // The sorted copy: what the inner loops read, contiguous per cell.
     struct View {
-        // vx and vy without pair_records only (with them the records hold the velocities,
-        // and a particle's own comes from Particles); mass where the masses differ (common_mass
-        // 0), else after refresh_mass.
+        // vx, vy and P / rho^2 without pair_records only (with them the records hold these,
+        // and a particle's own come from Particles); rho after refresh_filter_fields (and
+        // refresh_density without pair_records); mass where the masses differ (common_mass 0),
+        // else after refresh_filter_fields.
         const double *x, *y, *vx, *vy, *rho, *p_over_rho2, *mass;
         const double *fluid, *remote; // 1 or 0: a fluid particle; not owned by this rank
         // With pair_records: per sorted position vx, vy, rho, P / rho^2 (PairReal), 16-byte
@@ -158,11 +159,12 @@ public:
             f(orig_[s]);
     }
     // Copies density and P / rho^2, which the sort leaves out: they change between the sort and
-    // the passes that read them (continuity, equation of state, Shepard).
+    // the passes that read them (continuity, equation of state). With pair_records into the
+    // records only: no pair loop reads the doubles, and a particle's own come from Particles.
     void refresh_density(const Particles &p);
-    // The sorted masses, which update() copies only where they differ (View::mass): for a
-    // pass that reads them with one mass too (the Shepard filter, every few steps).
-    void refresh_mass(const Particles &p);
+    // The sorted densities as doubles and the masses, which update() copies only where they
+    // differ (View::mass): for the pass that reads them (the Shepard filter, every few steps).
+    void refresh_filter_fields(const Particles &p);
     // The same for the ghost positions only (their density came after the others'): the slots
     // kept for them (--overlap), else the columns holding any.
     void refresh_ghost_density(const Particles &p);
