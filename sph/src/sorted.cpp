@@ -308,9 +308,13 @@ void CellSorted::copy_fields(const Particles &p, std::size_t from, std::size_t t
             }
             if (masses)
                 mass_[s] = p.mass[i];
-            fluid_[s] = p.kind[i] == Kind::fluid ? 1.0 : 0.0;
+            // Stored only where it changed (few positions change kind between steps): a store
+            // to a line out of L2 is what the far mode charges (sph/NOTES.md, session 88).
+            if (const double wet = p.kind[i] == Kind::fluid ? 1.0 : 0.0; fluid_[s] != wet)
+                fluid_[s] = wet;
             if (remote_flags)
-                remote_[s] = i < owned_ ? 0.0 : 1.0;
+                if (const double far = i < owned_ ? 0.0 : 1.0; remote_[s] != far)
+                    remote_[s] = far;
         }
         if (const auto t = static_cast<std::size_t>(omp_get_thread_num());
             count_fluid && t < fluid_count_.size())
