@@ -209,16 +209,6 @@ calibrate_round() { # calibrate_round LABEL
         fi
     done
     # Rounds a's and b's are the model's (round b's since session 44).
-    # The 2-thread dam break at two scales, 0.35 here and 0.7 in sorted_runs (the model's
-    # since session 52; sessions 37-51 read 0.7 alone, two-thread-one-scale/): a 2-thread step
-    # costs about 0.12 ms whatever its work (a scale sweep 0.35-1.4, model/NOTES.md, session
-    # 52), a quarter of a scale-0.35 step and 4 % of a scale-1 one, and with the dam break at
-    # one scale cross-validation cannot tell it from the cost of an interaction, which put the
-    # 1 x 2 dam break at scale 1 high (+12.8 % mean over the 13 stored jobs on this host).
-    # 920 steps (0.155 in Froude time, past the validation's 0.1): at 1500 steps it would
-    # reach past the half-scale dam breaks and become the workload trace, a coarser one.
-    sph 1x2 "cal_dambreak_s0.35_sorted_t2_$1" --setup dambreak --scale 0.35 --grid sorted \
-        --steps "$c35_steps" --interval "$c_interval"
     sorted_runs "$1"
     cal_s=$((cal_s + SECONDS - t0))
 }
@@ -271,6 +261,21 @@ sorted_runs() {
     # mode costs about 15 % more, and no number of calibration runs tells which mode a later
     # run lands in. The dam break at scale 0.7 for 1500 steps (the time step is 0.1 ms at every
     # scale: 0.18 in Froude time, past the validation's 0.15).
+    # In rounds a and b also at scale 0.35 (the model's since session 52; sessions 37-51 read
+    # 0.7 alone, two-thread-one-scale/): a 2-thread step costs about 0.12 ms whatever its work
+    # (a scale sweep 0.35-1.4, model/NOTES.md, session 52), a quarter of a scale-0.35 step and 4
+    # % of a scale-1 one, and with the dam break at one scale cross-validation cannot tell it
+    # from the cost of an interaction, which put the 1 x 2 dam break at scale 1 high (+12.8 %
+    # mean over the 13 stored jobs on this host). 920 steps (0.155 in Froude time, past the
+    # validation's 0.1): at 1500 steps it would reach past the half-scale dam breaks and become
+    # the workload trace, a coarser one. Right before the 0.7 run since session 88: the 2-thread
+    # runs back to back met the same core-latency mode in 70 of 74 rounds, the 0.35 run 5 s
+    # earlier in 61 of 74, and where the scales ran in different modes the mode passed for a
+    # cost of the scale (+21.6 % on the 1 x 2 dam break; model/NOTES.md, session 88).
+    if [ "$1" != c ]; then
+        sph 1x2 "cal_dambreak_s0.35_sorted_t2_$1" --setup dambreak --scale 0.35 --grid sorted \
+            --steps "$c35_steps" --interval "$c_interval"
+    fi
     sph 1x2 "cal_dambreak_s0.7_sorted_t2_$1" --setup dambreak --scale 0.7 --grid sorted \
         --steps "$c_steps" --interval "$c_interval"
     sph 1x2 "cal_still_s0.5_sorted_t2_$1" --setup still --scale 0.5 --grid sorted \
