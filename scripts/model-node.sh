@@ -259,8 +259,7 @@ sorted_runs() {
     # run was bimodal (model/NOTES.md, session 16): the inter-core latency of the two vCPUs,
     # which switches in spells; since each thread keeps one block of cells (session 21) the far
     # mode costs about 15 % more, and no number of calibration runs tells which mode a later
-    # run lands in. The dam break at scale 0.7 for 1500 steps (the time step is 0.1 ms at every
-    # scale: 0.18 in Froude time, past the validation's 0.15).
+    # run lands in.
     # In rounds a and b also at scale 0.35 (the model's since session 52; sessions 37-51 read
     # 0.7 alone, two-thread-one-scale/): a 2-thread step costs about 0.12 ms whatever its work
     # (a scale sweep 0.35-1.4, model/NOTES.md, session 52), a quarter of a scale-0.35 step and 4
@@ -276,6 +275,8 @@ sorted_runs() {
         sph 1x2 "cal_dambreak_s0.35_sorted_t2_$1" --setup dambreak --scale 0.35 --grid sorted \
             --steps "$c35_steps" --interval "$c_interval"
     fi
+    # The dam break at scale 0.7 for 1500 steps (the time step is 0.1 ms at every scale: 0.18 in
+    # Froude time, past the validation's 0.15).
     sph 1x2 "cal_dambreak_s0.7_sorted_t2_$1" --setup dambreak --scale 0.7 --grid sorted \
         --steps "$c_steps" --interval "$c_interval"
     sph 1x2 "cal_still_s0.5_sorted_t2_$1" --setup still --scale 0.5 --grid sorted \

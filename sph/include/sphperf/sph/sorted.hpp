@@ -243,9 +243,10 @@ private:
     // Copies sorted positions [from, to) from p, then marks columns [first_column,
     // last_column) anew (remote_columns_, fluid_below_): the density pass counts remote
     // partners in the columns holding some only, and a wall particle looks at fluid only.
-    // `remote` false: every position is owned and remote_ already holds zeros (not written).
+    // `remote_flags` false: every position is owned and remote_ already holds zeros (neither
+    // written nor read).
     void copy_fields(const Particles &p, std::size_t from, std::size_t to, int first_column,
-                     int last_column, bool count_fluid = false, bool remote = true);
+                     int last_column, bool count_fluid = false, bool remote_flags = true);
     // Stable counting sort of [first, last) by key_: starts[c] becomes the first position of
     // cell c (cells + 1 entries, counted from `base`), out[starts[c]...] its indices in order.
     // Called by every thread of a parallel region (prepare_sort before it, for its team size);
