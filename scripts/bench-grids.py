@@ -4,7 +4,8 @@ and Cell+Sorted, on the still and dambreak setups at several scales, 1 and 2 thr
 run in a rotating order in each round so that drifts of the machine hit all alike.
 
     /usr/bin/python3 scripts/bench-grids.py [--rounds 3] [--grids list,table,sorted] [--scales 1,2,4]
-        [--particle-steps 3e6] [--overlap-ranks 2] [--out results/<host>/grid_benchmark.json]
+        [--particle-steps 3e6] [--overlap-ranks 2]
+        [--overlap-transports messages,window] [--out results/<host>/grid_benchmark.json]
         [--png FILE]
 
 Per run: wall time per step, ns per ordered pair (wall time / neighbour interactions, both
@@ -18,7 +19,9 @@ meanwhile. Runs with ranks x threads above the core count are marked oversubscri
 Then Cell+Sorted at --overlap-ranks ranks, 1 thread, blocking and with --overlap in alternating
 order per round: the exchanges' time per step (comm_s, mean over ranks), the share of it the
 overlap hides (1 - overlapped / blocking, per round) of the ghost and density exchanges (the
-ones it overlaps) and of all three (migration stays blocking), and the wall time per step.
+ones it overlaps) and of all three (migration stays blocking), and the wall time per step; for
+each --overlap-transports (sph --halo-transport: MPI messages, or the shared-memory window), and
+for the window what its overlapped run leaves of the blocking exchanges by messages.
 
 Then the dam break at scale 1 over a longer run (--developed-steps, 1 rank, each thread count),
 Cell+Table and Cell+Sorted alternating: the short runs above see only the flow's start, where the
@@ -50,12 +53,14 @@ BIN = os.path.join(os.environ.get("SPHPERF_BUILD_DIR", os.path.join(ROOT, "build
 GRIDS = ("list", "table", "sorted")
 
 
-def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False, interval=None):
+def run_sph(grid, setup, scale, threads, ranks, steps, tmp, overlap=False, interval=None,
+            transport="messages"):
     report = os.path.join(tmp, "sph.json")
     cmd = ["bash", os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(ranks), "-t", str(threads),
            os.path.join(BIN, "sph"), "--quiet", "--grid", grid, "--setup", setup, "--scale",
            str(scale), "--threads", str(threads), "--steps", str(steps), "--interval",
-           str(interval or steps), "--report", report] + (["--overlap"] if overlap else [])
+           str(interval or steps), "--report", report, "--halo-transport", transport] + (
+               ["--overlap"] if overlap else [])
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"bench-grids: {' '.join(cmd)} failed: {r.stderr.strip()}")
@@ -141,6 +146,9 @@ def main():
     ap.add_argument("--max-steps", type=int, default=400, help="default 400")
     ap.add_argument("--overlap-ranks", type=int, default=2,
                     help="ranks of the sorted --overlap comparison (default 2; 0: none)")
+    ap.add_argument("--overlap-transports", default="messages,window",
+                    help="sph --halo-transport of the --overlap comparison, each blocking and "
+                         "overlapped (default messages,window)")
     ap.add_argument("--developed-steps", type=int, default=1200,
                     help="steps of the longer scale-1 dam break, table against sorted (default "
                          "1200; 0: none)")
@@ -174,6 +182,11 @@ def main():
             args.developed_steps and args.developed_steps % args.developed_interval):
         sys.exit(f"bench-grids: --developed-steps {args.developed_steps} must be 0 or a positive "
                  f"multiple of --developed-interval {args.developed_interval}")
+    transports = args.overlap_transports.split(",")
+    for t in transports:
+        if t not in ("messages", "window"):
+            sys.exit(f"bench-grids: --overlap-transports: unknown transport '{t}' (expected "
+                     "messages or window)")
     grids = args.grids.split(",")
     for g in grids:
         if g not in GRIDS:
@@ -216,17 +229,19 @@ def main():
                 for g in grids[shift:] + grids[:shift]:
                     results[c][g].append(run_sph(g, *c, steps[(c[0], c[1])], tmp))
         # Blocking against overlapped exchanges, the same configuration, alternating order.
-        overlap_cases = sorted({(c[0], c[1]) for c in configs}) if args.overlap_ranks else []
+        # Per transport, in a rotating order too.
+        overlap_cases = ([(c[0], c[1], t) for c in sorted({(c[0], c[1]) for c in configs})
+                          for t in transports] if args.overlap_ranks else [])
         overlap_runs = {c: {False: [], True: []} for c in overlap_cases}
         for rnd in range(args.rounds):
-            for k, (setup, scale) in enumerate(overlap_cases):
+            for k, (setup, scale, transport) in enumerate(overlap_cases):
                 print(f"round {rnd + 1}/{args.rounds}, overlap {k + 1}/{len(overlap_cases)}: "
-                      f"{setup} s{scale:g} at {args.overlap_ranks} ranks", file=sys.stderr,
-                      flush=True)
+                      f"{setup} s{scale:g} at {args.overlap_ranks} ranks, {transport}",
+                      file=sys.stderr, flush=True)
                 for ov in ((False, True) if (rnd + k) % 2 == 0 else (True, False)):
-                    overlap_runs[(setup, scale)][ov].append(
+                    overlap_runs[(setup, scale, transport)][ov].append(
                         run_sph("sorted", setup, scale, 1, args.overlap_ranks,
-                                steps[(setup, scale)], tmp, overlap=ov))
+                                steps[(setup, scale)], tmp, overlap=ov, transport=transport))
         # The longer dam break, table against sorted, alternating order.
         developed = ("table" in grids and "sorted" in grids and args.developed_steps > 0)
         developed_runs = {t: {"table": [], "sorted": []} for t in (threads if developed else [])}
@@ -361,16 +376,18 @@ def main():
     overlap_rows = []
     if overlap_cases:
         print(f"\nCell+Sorted at {args.overlap_ranks} ranks: exchanges per step, blocking vs --overlap")
-        print(f"{'setup':9s} {'scale':>5s} {'halo us blk':>11s} {'ovl':>6s} "
+        print(f"{'setup':9s} {'scale':>5s} {'transport':9s} {'halo us blk':>11s} {'ovl':>6s} "
               f"{'hidden (ghosts+density)':>24s} {'all exchanges':>14s} {'step ms (blk/ovl)':>18s}")
-    for (setup, scale) in overlap_cases:
-        blk, ovl = overlap_runs[(setup, scale)][False], overlap_runs[(setup, scale)][True]
+    for (setup, scale, transport) in overlap_cases:
+        blk = overlap_runs[(setup, scale, transport)][False]
+        ovl = overlap_runs[(setup, scale, transport)][True]
         keys = ("comm_s_per_step", "halo_comm_s_per_step", "step_s")
 
         def hidden(key):
             return spread([1 - o[key] / b[key] for b, o in zip(blk, ovl) if b[key] > 0])
 
-        row = {"setup": setup, "scale": scale, "ranks": args.overlap_ranks, "threads": 1,
+        row = {"setup": setup, "scale": scale, "halo_transport": transport,
+               "ranks": args.overlap_ranks, "threads": 1,
                "oversubscribed": args.overlap_ranks > cores, "steps": steps[(setup, scale)],
                "rounds": args.rounds,
                "blocking": {k: spread([r[k] for r in blk]) for k in keys},
@@ -379,9 +396,17 @@ def main():
                # no more: of the ghost and density exchanges, and of all three.
                "hidden_fraction": hidden("halo_comm_s_per_step"),
                "hidden_fraction_all_exchanges": hidden("comm_s_per_step")}
+        # Per round, what the overlapped run leaves of the blocking exchanges by messages: the
+        # transport's share and the overlap's together.
+        by_messages = overlap_runs.get((setup, scale, "messages"), {}).get(False, [])
+        if transport != "messages" and by_messages:
+            key = "halo_comm_s_per_step"
+            row["left_of_blocking_messages"] = spread(
+                [o[key] / b[key] for b, o in zip(by_messages, ovl) if b[key] > 0])
         overlap_rows.append(row)
         h, a = row["hidden_fraction"], row["hidden_fraction_all_exchanges"]
-        print(f"{setup:9s} {scale:5g} {row['blocking']['halo_comm_s_per_step']['median'] * 1e6:11.2f} "
+        print(f"{setup:9s} {scale:5g} {transport:9s} "
+              f"{row['blocking']['halo_comm_s_per_step']['median'] * 1e6:11.2f} "
               f"{row['overlap']['halo_comm_s_per_step']['median'] * 1e6:6.2f} "
               f"{100 * h['median']:9.1f} % ({100 * h['min']:.0f}..{100 * h['max']:.0f} %) "
               f"{100 * a['median']:12.1f} % "
@@ -484,25 +509,40 @@ def plot(rows, grids, png, overlap_rows, developed_rows=()):
     axes[0].legend()
     if overlap_rows:
         ax = axes[2]
-        xs = range(len(overlap_rows))
-        for k, (mode, label) in enumerate((("blocking", "blocking"), ("overlap", "overlapped (sph --overlap)"))):
-            med = [1e6 * r[mode]["halo_comm_s_per_step"]["median"] for r in overlap_rows]
-            lo = [m - 1e6 * r[mode]["halo_comm_s_per_step"]["min"] for m, r in zip(med, overlap_rows)]
-            hi = [1e6 * r[mode]["halo_comm_s_per_step"]["max"] - m for m, r in zip(med, overlap_rows)]
-            ax.bar([x + (k - 0.5) * 0.4 for x in xs], med, 0.4, yerr=[lo, hi], capsize=2,
-                   label=label)
-        for x, r in zip(xs, overlap_rows):
-            top = 1e6 * max(r["blocking"]["halo_comm_s_per_step"]["max"],
-                            r["overlap"]["halo_comm_s_per_step"]["max"])
-            ax.annotate(f"{100 * r['hidden_fraction']['median']:.0f} %", (x, top), ha="center",
-                        va="bottom", fontsize=8)
+        cases = sorted({(r["setup"], r["scale"]) for r in overlap_rows},
+                       key=lambda c: [(r["setup"], r["scale"]) for r in overlap_rows].index(c))
+        found = [r.get("halo_transport", "messages") for r in overlap_rows]
+        kinds = [t for t in ("messages", "window") if t in found]
+        bars = [(t, mode) for t in kinds for mode in ("blocking", "overlap")]
+        width = 0.8 / len(bars)
+        for k, (t, mode) in enumerate(bars):
+            xs, med, lo, hi = [], [], [], []
+            for x, c in enumerate(cases):
+                r = next((r for r in overlap_rows if (r["setup"], r["scale"]) == c
+                          and r.get("halo_transport", "messages") == t), None)
+                if r is None:
+                    continue
+                m = 1e6 * r[mode]["halo_comm_s_per_step"]["median"]
+                xs.append(x + (k - (len(bars) - 1) / 2) * width)
+                med.append(m)
+                lo.append(m - 1e6 * r[mode]["halo_comm_s_per_step"]["min"])
+                hi.append(1e6 * r[mode]["halo_comm_s_per_step"]["max"] - m)
+            ax.bar(xs, med, width, yerr=[lo, hi], capsize=2,
+                   label=f"{t}, {'blocking' if mode == 'blocking' else 'overlapped (--overlap)'}")
+        for x, c in enumerate(cases):
+            rs = [r for r in overlap_rows if (r["setup"], r["scale"]) == c]
+            top = 1e6 * max(r[m]["halo_comm_s_per_step"]["max"] for r in rs
+                            for m in ("blocking", "overlap"))
+            label = " / ".join(f"{100 * r['hidden_fraction']['median']:.0f}" for r in rs)
+            ax.annotate(label + " %", (x, top), ha="center", va="bottom", fontsize=7)
         ax.set_yscale("log")
-        ax.set_xticks(list(xs))
-        ax.set_xticklabels([f"{r['setup']}\ns{r['scale']:g}" for r in overlap_rows], fontsize=8)
+        ax.set_xticks(list(range(len(cases))))
+        ax.set_xticklabels([f"{c[0]}\ns{c[1]:g}" for c in cases], fontsize=8)
         ax.set_ylabel("ghost + density exchanges, us per step (log)")
-        ax.set_title(f"Cell+Sorted, {overlap_rows[0]['ranks']} ranks: hidden share above bars")
+        ax.set_title(f"Cell+Sorted, {overlap_rows[0]['ranks']} ranks: hidden share above bars "
+                     f"({' / '.join(kinds)})", fontsize=9)
         ax.grid(axis="y", alpha=0.3)
-        ax.legend(fontsize=8, loc="upper left")
+        ax.legend(fontsize=7, loc="upper left")
     if developed_rows:
         ax = axes[-1]
         for row in developed_rows:

@@ -50,6 +50,10 @@ for r in 2 3; do
 done
 sph 3 sorted_overlap_mirror_balanced_r3 --grid sorted --overlap --boundary mirror --steps 150 \
     --decomposition balanced --rebalance-every 50
+# The shared-memory window: ghosts packed into this rank's segment, landed from the neighbours'.
+sph 3 sorted_window_overlap_mirror_r3 --grid sorted --overlap --halo-transport window \
+    --boundary mirror --steps 150 --decomposition balanced --rebalance-every 50
+sph 2 table_window_r2 --grid table --halo-transport window --steps 150
 # Particles permuted in place every step (scratch buffers swapped with the arrays).
 sph 3 sorted_reorder_mirror_r3 --grid sorted --reorder-every 1 --boundary mirror --steps 150
 sph 3 checkpoint_r3 --steps 100 --checkpoint "$scratch/ck" --decomposition balanced

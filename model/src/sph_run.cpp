@@ -315,6 +315,13 @@ SphRun load_sph_run(const std::filesystem::path &path) {
         bad("continues a checkpoint (sph --restart, from step " +
             j["restart"].value("from_step", json(-1)).dump() +
             "): its wall_s times only the steps after it; use uninterrupted runs");
+    // The model costs the ghost and density exchanges as MPI messages (Hockney, exchange
+    // benchmark); a run that sent them through a shared window measured something else.
+    if (const auto t = j.at("config").value("halo_transport", std::string("messages"));
+        t != "messages")
+        bad("ran with sph --halo-transport " + t +
+            ", which the model does not cost (it costs MPI messages): expected runs with "
+            "--halo-transport messages");
     if (r.intervals.empty())
         bad("no intervals recorded (a run of 0 steps cannot calibrate anything)");
     if (r.initial_columns.size() != cols || r.wall_columns.size() != cols)

@@ -36,6 +36,8 @@ constexpr std::pair<std::string_view, BoundaryKind> boundaries[] = {
     {"mirror", BoundaryKind::mirror}, {"fixed", BoundaryKind::fixed}};
 constexpr std::pair<std::string_view, Decomposition> decompositions[] = {
     {"equal", Decomposition::equal}, {"balanced", Decomposition::balanced}};
+constexpr std::pair<std::string_view, HaloTransport> halo_transports[] = {
+    {"messages", HaloTransport::messages}, {"window", HaloTransport::window}};
 
 // Thesis dimensions at scale 1 (3.1).
 constexpr double tank_length_m = 3.22;
@@ -64,6 +66,12 @@ Decomposition parse_decomposition(std::string_view s) {
 }
 std::string_view to_string(Decomposition d) {
     return name_of(d, decompositions);
+}
+HaloTransport parse_halo_transport(std::string_view s) {
+    return parse_enum("halo transport", s, halo_transports);
+}
+std::string_view to_string(HaloTransport t) {
+    return name_of(t, halo_transports);
 }
 FaultInjection parse_fault(std::string_view s) {
     const std::string text(s);

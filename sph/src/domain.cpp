@@ -4,10 +4,14 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
+#include <cstddef>
+#include <exception>
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <type_traits>
 #include <utility>
 
@@ -20,6 +24,149 @@ constexpr int tag_density = 13;
 constexpr int tag_probe = 14;
 static_assert(std::is_trivially_copyable_v<ParticleRecord>);
 } // namespace
+
+// Ghosts and their densities through an MPI-3 shared-memory window (sph --halo-transport
+// window). On one node two-sided messages copy each payload twice, into shared buffers and
+// out (or once by the receiver, above the eager limit), on the ranks' own cores: that copying
+// was most of what an overlapped exchange left exposed (sph/NOTES.md, "Overlap"). Here every
+// rank owns one segment: per direction (0: toward the west neighbour, 1: toward the east) the
+// sequence number of its last post and the payload's bytes, per side the sequence it has
+// landed from that neighbour, and two payload buffers per direction used by turns, so it packs
+// the next payload while its neighbour may still land the last. A sender packs straight into
+// its segment, a receiver lands straight from its neighbour's. Order comes from release stores
+// and acquire loads of the sequence words (the window's memory model is checked unified).
+class HaloWindow {
+public:
+    struct Payload {
+        const std::byte *data = nullptr;
+        std::size_t bytes = 0;
+    };
+
+    HaloWindow(MPI_Comm comm, int west, int east, std::size_t capacity)
+        : capacity_((capacity + line - 1) / line * line) {
+        MPI_Comm node;
+        MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
+        int here = 0, all = 0;
+        MPI_Comm_size(node, &here);
+        MPI_Comm_size(comm, &all);
+        if (here != all) {
+            MPI_Comm_free(&node);
+            throw std::runtime_error("--halo-transport window: " + std::to_string(here) +
+                                     " of the job's " + std::to_string(all) +
+                                     " ranks share this node; expected all of them");
+        }
+        // Ranks keep their order (key 0), so a neighbour's rank is the same in `node`.
+        void *base = nullptr;
+        MPI_Win_allocate_shared(static_cast<MPI_Aint>(header + 4 * capacity_), 1, MPI_INFO_NULL,
+                                node, &base, &win_);
+        MPI_Comm_free(&node);
+        int *memory_model = nullptr, flag = 0;
+        MPI_Win_get_attr(win_, MPI_WIN_MODEL, &memory_model, &flag);
+        if (!flag || *memory_model != MPI_WIN_UNIFIED) {
+            MPI_Win_free(&win_);
+            throw std::runtime_error("--halo-transport window: this MPI's shared windows are "
+                                     "not in the unified memory model");
+        }
+        mine_ = static_cast<std::byte *>(base);
+        std::fill_n(mine_, header, std::byte{0});
+        peer_[0] = segment(west);
+        peer_[1] = segment(east);
+        MPI_Win_lock_all(MPI_MODE_NOCHECK, win_);
+        MPI_Barrier(comm); // every header zeroed before anyone looks at it
+    }
+    ~HaloWindow() {
+        // Freeing is collective: a rank unwinding from an error would wait here for neighbours
+        // that spin on its sequence words, and never reach the MPI_Abort that ends the job.
+        if (std::uncaught_exceptions() > 0)
+            return;
+        MPI_Win_unlock_all(win_);
+        MPI_Win_free(&win_);
+    }
+    HaloWindow(const HaloWindow &) = delete;
+    HaloWindow &operator=(const HaloWindow &) = delete;
+
+    std::size_t capacity() const { return capacity_; }
+    // This rank's buffer toward `dir` for the next post, once that neighbour has landed what
+    // the buffer held two posts ago; nullptr without a neighbour there.
+    std::byte *outgoing(int dir) {
+        if (!peer_[dir])
+            return nullptr;
+        const std::uint64_t next = seq_ + 1;
+        // The neighbour lands from its other side: from the east what this rank sends west.
+        spin_until(word(peer_[dir], landed_line + 1 - dir),
+                   next - std::min<std::uint64_t>(next, 2));
+        return buffer(mine_, dir, next);
+    }
+    // Posts what outgoing() buffers now hold (bytes toward the west and east).
+    void publish(std::size_t west_bytes, std::size_t east_bytes) {
+        const std::uint64_t next = ++seq_;
+        const std::array<std::size_t, 2> bytes{west_bytes, east_bytes};
+        for (int dir : {0, 1}) {
+            if (!peer_[dir])
+                continue;
+            if (bytes[dir] > capacity_)
+                throw std::logic_error("--halo-transport window: a payload above the segment");
+            *size_word(mine_, dir, next) = bytes[dir];
+            std::atomic_ref<std::uint64_t>(*word(mine_, posted_line + dir))
+                .store(next, std::memory_order_release);
+        }
+    }
+    // The neighbours' payloads of the current post (from the west, from the east), once both
+    // posted it.
+    std::pair<Payload, Payload> incoming() const {
+        auto from = [&](int side) -> Payload {
+            std::byte *peer = peer_[side];
+            if (!peer)
+                return {};
+            const int dir = 1 - side; // the west neighbour sent it east
+            spin_until(word(peer, posted_line + dir), seq_);
+            return {buffer(peer, dir, seq_), *size_word(peer, dir, seq_)};
+        };
+        return {from(0), from(1)};
+    }
+    // Both neighbours may reuse the buffers of the current post.
+    void landed() {
+        for (int side : {0, 1})
+            std::atomic_ref<std::uint64_t>(*word(mine_, landed_line + side))
+                .store(seq_, std::memory_order_release);
+    }
+
+private:
+    static constexpr std::size_t line = 64;
+    static constexpr std::size_t posted_line = 0, landed_line = 2, sizes_line = 4;
+    static constexpr std::size_t header = 8 * line;
+    static std::uint64_t *word(std::byte *seg, std::size_t l) {
+        return reinterpret_cast<std::uint64_t *>(seg + l * line);
+    }
+    static std::size_t *size_word(std::byte *seg, int dir, std::uint64_t seq) {
+        return reinterpret_cast<std::size_t *>(seg + sizes_line * line) + 2 * dir + (seq & 1);
+    }
+    std::byte *buffer(std::byte *seg, int dir, std::uint64_t seq) const {
+        return seg + header + (2 * static_cast<std::size_t>(dir) + (seq & 1)) * capacity_;
+    }
+    // Spins, then yields (ranks above the cores take turns), until *w >= at_least.
+    static void spin_until(std::uint64_t *w, std::uint64_t at_least) {
+        std::atomic_ref<std::uint64_t> a(*w);
+        for (int i = 0; a.load(std::memory_order_acquire) < at_least; ++i)
+            if (i >= spins_before_yield)
+                std::this_thread::yield();
+    }
+    static constexpr int spins_before_yield = 2000;
+    std::byte *segment(int peer) const {
+        if (peer == MPI_PROC_NULL)
+            return nullptr;
+        MPI_Aint size = 0;
+        int disp = 0;
+        void *p = nullptr;
+        MPI_Win_shared_query(win_, peer, &size, &disp, &p);
+        return static_cast<std::byte *>(p);
+    }
+    std::size_t capacity_;
+    MPI_Win win_ = MPI_WIN_NULL;
+    std::byte *mine_ = nullptr;
+    std::array<std::byte *, 2> peer_{};
+    std::uint64_t seq_ = 0; // posts so far; every rank posts the same exchanges in turn
+};
 
 int Slab::owner_of_column(int column) const {
     const int c = std::clamp(column, 0, columns - 1);
@@ -44,6 +191,15 @@ Domain::Domain(MPI_Comm comm, int columns, double cell_size) : comm_(comm) {
         west_ = slab_.rank - 1;
     if (slab_.rank + 1 < slab_.ranks)
         east_ = slab_.rank + 1;
+}
+
+Domain::~Domain() = default;
+
+void Domain::open_window(const Particles &p) {
+    if (!window_wanted_ || window_)
+        return;
+    const auto held = static_cast<std::size_t>(sum(static_cast<long long>(p.size())));
+    window_ = std::make_unique<HaloWindow>(comm_, west_, east_, 2 * held * sizeof(ParticleRecord));
 }
 
 CellWindow Domain::window(int cell_rows) const {
@@ -269,11 +425,8 @@ void Domain::sum_all(std::vector<double> &v) const {
     MPI_Allreduce(MPI_IN_PLACE, v.data(), static_cast<int>(v.size()), MPI_DOUBLE, MPI_SUM, comm_);
 }
 
-void Domain::pack_ghosts(const Particles &p, std::vector<ParticleRecord> &to_west,
-                         std::vector<ParticleRecord> &to_east) {
-    MaybePhase t(timers_, Phase::pack);
-    to_west.clear();
-    to_east.clear();
+template <class West, class East>
+void Domain::pack_ghosts(const Particles &p, West west, East east) {
     export_west_.clear();
     export_east_.clear();
     const double west_edge = slab_.x_begin() + slab_.cell_size;
@@ -281,32 +434,92 @@ void Domain::pack_ghosts(const Particles &p, std::vector<ParticleRecord> &to_wes
     const std::size_t n = p.size();
     for (std::size_t i = 0; i < n; ++i) {
         if (west_ != MPI_PROC_NULL && p.x[i] < west_edge) {
-            to_west.push_back(p.record(i));
+            west(p.record(i));
             export_west_.push_back(static_cast<std::uint32_t>(i));
         }
         if (east_ != MPI_PROC_NULL && p.x[i] >= east_edge) {
-            to_east.push_back(p.record(i));
+            east(p.record(i));
             export_east_.push_back(static_cast<std::uint32_t>(i));
         }
     }
 }
 
-void Domain::land_ghosts(Particles &p, const Received<ParticleRecord> &in) {
+void Domain::pack_ghosts(const Particles &p, std::vector<ParticleRecord> &to_west,
+                         std::vector<ParticleRecord> &to_east) {
+    MaybePhase t(timers_, Phase::pack);
+    to_west.clear();
+    to_east.clear();
+    pack_ghosts(
+        p, [&](const ParticleRecord &r) { to_west.push_back(r); },
+        [&](const ParticleRecord &r) { to_east.push_back(r); });
+}
+
+template <class T> std::pair<T *, T *> Domain::window_buffers(int tag) {
+    const double start = wall_seconds();
+    std::pair<T *, T *> out;
+    {
+        MaybePhase t(timers_, Phase::comm);
+        out = {reinterpret_cast<T *>(window_->outgoing(0)),
+               reinterpret_cast<T *>(window_->outgoing(1))};
+    }
+    tally_.shift_s[shift_index(tag)] += wall_seconds() - start;
+    return out;
+}
+
+std::pair<std::span<const ParticleRecord>, std::span<const ParticleRecord>>
+Domain::pack_ghosts_into_window(const Particles &p) {
+    const auto [west, east] = window_buffers<ParticleRecord>(tag_ghost);
+    MaybePhase t(timers_, Phase::pack);
+    const std::size_t room = window_->capacity() / sizeof(ParticleRecord);
+    std::size_t nw = 0, ne = 0;
+    auto into = [room](ParticleRecord *buf, std::size_t &n) {
+        return [buf, &n, room](const ParticleRecord &r) {
+            if (n == room) // the segment holds every particle of the job
+                throw std::logic_error("--halo-transport window: more ghosts than particles");
+            buf[n++] = r;
+        };
+    };
+    pack_ghosts(p, into(west, nw), into(east, ne));
+    return {{west, nw}, {east, ne}};
+}
+
+void Domain::land_ghosts(Particles &p, std::span<const ParticleRecord> west,
+                         std::span<const ParticleRecord> east) {
     MaybePhase t(timers_, Phase::pack);
     ghosts_begin_ = p.size();
-    ghosts_from_west_ = in.from_west.size();
-    for (const auto *part : {&in.from_west, &in.from_east})
-        for (const auto &r : *part)
+    ghosts_from_west_ = west.size();
+    for (const auto part : {west, east})
+        for (const auto &r : part)
             p.add_transient(r);
+}
+
+template <class T>
+std::pair<std::span<const T>, std::span<const T>> Domain::arrived(const Received<T> &in) const {
+    if (!window_)
+        return {in.from_west, in.from_east};
+    auto typed = [](std::span<const std::byte> b) {
+        return std::span<const T>(reinterpret_cast<const T *>(b.data()), b.size() / sizeof(T));
+    };
+    const auto west = typed(flight_.window_in.first), east = typed(flight_.window_in.second);
+    // The counts also rode on the handshake: both must tell the same.
+    if (west.size() != flight_.recv_west || east.size() != flight_.recv_east)
+        throw std::logic_error("--halo-transport window: a payload's size differs from the "
+                               "count its handshake announced");
+    return {west, east};
 }
 
 ExchangeCounts Domain::exchange_ghosts(Particles &p) {
     if (slab_.ranks == 1)
         return {};
+    open_window(p);
+    if (window_) { // the same post and completion, back to back
+        begin_ghosts(p);
+        return finish_ghosts(p);
+    }
     std::vector<ParticleRecord> to_west, to_east;
     pack_ghosts(p, to_west, to_east);
     const auto in = shift(to_west, to_east, tag_ghost);
-    land_ghosts(p, in);
+    land_ghosts(p, in.from_west, in.from_east);
     return {to_west.size() + to_east.size(), in.from_west.size() + in.from_east.size()};
 }
 
@@ -323,6 +536,11 @@ void densities_of(const Particles &p, const std::vector<std::uint32_t> &idx,
 void Domain::refresh_ghost_density(Particles &p) {
     if (slab_.ranks == 1)
         return;
+    if (window_) {
+        begin_ghost_density(p);
+        finish_ghost_density(p);
+        return;
+    }
     std::optional<MaybePhase> pack(std::in_place, timers_, Phase::pack);
     // The overlapped path's kept buffers: a run refreshes densities one way or the other.
     densities_of(p, export_west_, flight_.rho_to_west);
@@ -330,19 +548,20 @@ void Domain::refresh_ghost_density(Particles &p) {
     pack.reset();
     const auto in = shift(flight_.rho_to_west, flight_.rho_to_east, tag_density);
     pack.emplace(timers_, Phase::pack);
-    land_densities(p, in);
+    land_densities(p, in.from_west, in.from_east);
 }
 
-void Domain::land_densities(Particles &p, const Received<double> &in) const {
-    std::copy(in.from_west.begin(), in.from_west.end(),
-              p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_));
-    std::copy(in.from_east.begin(), in.from_east.end(),
+void Domain::land_densities(Particles &p, std::span<const double> west,
+                            std::span<const double> east) const {
+    std::copy(west.begin(), west.end(), p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_));
+    std::copy(east.begin(), east.end(),
               p.rho.begin() + static_cast<std::ptrdiff_t>(ghosts_begin_ + ghosts_from_west_));
 }
 
 template <class T>
-void Domain::post_shift(const std::vector<T> &to_west, const std::vector<T> &to_east,
-                        Received<T> &in, int tag) {
+std::pair<std::size_t, std::size_t> Domain::post_shift(std::span<const T> to_west,
+                                                       std::span<const T> to_east, Received<T> &in,
+                                                       int tag) {
     static_assert(std::is_trivially_copyable_v<T>);
     if (!flight_.receives.empty())
         throw std::logic_error("Domain: an exchange is already in flight");
@@ -360,9 +579,21 @@ void Domain::post_shift(const std::vector<T> &to_west, const std::vector<T> &to_
     const double comm_start = wall_seconds();
     flight_.tag = tag;
     flight_.gaps = gaps(tag, comm_start);
-    in.from_west.resize(static_cast<std::size_t>(west_ == MPI_PROC_NULL ? 0 : from_w));
-    in.from_east.resize(static_cast<std::size_t>(east_ == MPI_PROC_NULL ? 0 : from_e));
-    {
+    if (window_) {
+        // Already in this rank's segment: posting is storing the sizes and sequence numbers.
+        in.from_west.clear();
+        in.from_east.clear();
+        MaybePhase t(timers_, Phase::comm);
+        window_->publish(to_west.size_bytes(), to_east.size_bytes());
+        for (const auto &[peer, bytes] :
+             {std::pair{west_, to_west.size_bytes()}, std::pair{east_, to_east.size_bytes()}})
+            if (peer != MPI_PROC_NULL) {
+                tally_.messages += 1;
+                tally_.bytes += static_cast<double>(bytes);
+            }
+    } else {
+        in.from_west.resize(static_cast<std::size_t>(west_ == MPI_PROC_NULL ? 0 : from_w));
+        in.from_east.resize(static_cast<std::size_t>(east_ == MPI_PROC_NULL ? 0 : from_e));
         MaybePhase t(timers_, Phase::comm);
         // A send completes only once the neighbour's MPI has taken it in (measured: an eager
         // 512 B send waits ~1 ms for a neighbour computing 1 ms), so the previous exchange's
@@ -392,26 +623,40 @@ void Domain::post_shift(const std::vector<T> &to_west, const std::vector<T> &to_
     }
     tally_.shift_s[shift_index(tag)] += wall_seconds() - comm_start;
     // Hockney of the payloads as the blocking shift costs them.
-    auto bytes = [](const std::vector<T> &v) { return static_cast<double>(v.size() * sizeof(T)); };
-    shift_hockney_s_ = sendrecv_hockney(east_, bytes(to_east), west_, bytes(in.from_west)) +
-                       sendrecv_hockney(west_, bytes(to_west), east_, bytes(in.from_east));
+    auto bytes = [](auto n) {
+        return static_cast<double>(static_cast<std::size_t>(n) * sizeof(T));
+    };
+    const double in_west = bytes(west_ == MPI_PROC_NULL ? 0 : from_w),
+                 in_east = bytes(east_ == MPI_PROC_NULL ? 0 : from_e);
+    shift_hockney_s_ = sendrecv_hockney(east_, bytes(to_east.size()), west_, in_west) +
+                       sendrecv_hockney(west_, bytes(to_west.size()), east_, in_east);
     // What no overlap hides: this rank takes in each received payload itself.
     flight_.exposed_s = 0;
     if (overlap_west_ && west_ != MPI_PROC_NULL)
-        flight_.exposed_s += overlap_west_(bytes(in.from_west));
+        flight_.exposed_s += overlap_west_(in_west);
     if (overlap_east_ && east_ != MPI_PROC_NULL)
-        flight_.exposed_s += overlap_east_(bytes(in.from_east));
+        flight_.exposed_s += overlap_east_(in_east);
     if (!overlap_west_ && !overlap_east_)
         flight_.exposed_s = shift_hockney_s_;
+    flight_.sent_west = to_west.size();
+    flight_.sent_east = to_east.size();
+    flight_.recv_west = static_cast<std::size_t>(west_ == MPI_PROC_NULL ? 0 : from_w);
+    flight_.recv_east = static_cast<std::size_t>(east_ == MPI_PROC_NULL ? 0 : from_e);
     flight_.posted_s = wall_seconds();
+    return {flight_.recv_west, flight_.recv_east};
 }
 
 void Domain::complete_shift(double payload_bytes) {
     const double window = wall_seconds() - flight_.posted_s;
     {
         MaybePhase t(timers_, Phase::comm);
-        MPI_Waitall(static_cast<int>(flight_.receives.size()), flight_.receives.data(),
-                    MPI_STATUSES_IGNORE);
+        if (window_) {
+            const auto [w, e] = window_->incoming();
+            flight_.window_in = {{w.data, w.bytes}, {e.data, e.bytes}};
+        } else {
+            MPI_Waitall(static_cast<int>(flight_.receives.size()), flight_.receives.data(),
+                        MPI_STATUSES_IGNORE);
+        }
     }
     flight_.receives.clear();
     const double end = wall_seconds();
@@ -450,9 +695,17 @@ void Domain::complete_sends() {
 GhostsInFlight Domain::begin_ghosts(const Particles &p) {
     if (slab_.ranks == 1)
         return {};
-    pack_ghosts(p, flight_.to_west, flight_.to_east);
-    post_shift(flight_.to_west, flight_.to_east, flight_.ghosts, tag_ghost);
-    return {flight_.ghosts.from_west.size(), flight_.ghosts.from_east.size()};
+    open_window(p);
+    std::span<const ParticleRecord> west, east;
+    if (window_) {
+        std::tie(west, east) = pack_ghosts_into_window(p);
+    } else {
+        pack_ghosts(p, flight_.to_west, flight_.to_east);
+        west = flight_.to_west;
+        east = flight_.to_east;
+    }
+    const auto [from_w, from_e] = post_shift(west, east, flight_.ghosts, tag_ghost);
+    return {from_w, from_e};
 }
 
 ExchangeCounts Domain::finish_ghosts(Particles &p) {
@@ -461,35 +714,46 @@ ExchangeCounts Domain::finish_ghosts(Particles &p) {
         ghosts_from_west_ = 0;
         return {};
     }
-    const auto &g = flight_.ghosts;
-    complete_shift(static_cast<double>(sizeof(ParticleRecord) *
-                                       std::max({flight_.to_east.size(), flight_.to_west.size(),
-                                                 g.from_west.size(), g.from_east.size()})));
-    land_ghosts(p, g);
-    return {flight_.to_west.size() + flight_.to_east.size(),
-            g.from_west.size() + g.from_east.size()};
+    complete_shift(static_cast<double>(sizeof(ParticleRecord) * flight_.largest()));
+    const auto [west, east] = arrived(flight_.ghosts);
+    land_ghosts(p, west, east);
+    if (window_)
+        window_->landed();
+    return {flight_.sent_west + flight_.sent_east, west.size() + east.size()};
 }
 
 void Domain::begin_ghost_density(const Particles &p) {
     if (slab_.ranks == 1)
         return;
-    {
+    std::span<const double> west, east;
+    if (window_) {
+        const auto [w, e] = window_buffers<double>(tag_density);
+        MaybePhase t(timers_, Phase::pack);
+        for (std::size_t k = 0; k < export_west_.size(); ++k) // empty without a west neighbour
+            w[k] = p.rho[export_west_[k]];
+        for (std::size_t k = 0; k < export_east_.size(); ++k)
+            e[k] = p.rho[export_east_[k]];
+        west = {w, export_west_.size()};
+        east = {e, export_east_.size()};
+    } else {
         MaybePhase t(timers_, Phase::pack);
         densities_of(p, export_west_, flight_.rho_to_west);
         densities_of(p, export_east_, flight_.rho_to_east);
+        west = flight_.rho_to_west;
+        east = flight_.rho_to_east;
     }
-    post_shift(flight_.rho_to_west, flight_.rho_to_east, flight_.rho, tag_density);
+    post_shift(west, east, flight_.rho, tag_density);
 }
 
 void Domain::finish_ghost_density(Particles &p) {
     if (slab_.ranks == 1)
         return;
-    const auto &in = flight_.rho;
-    complete_shift(static_cast<double>(
-        sizeof(double) * std::max({flight_.rho_to_east.size(), flight_.rho_to_west.size(),
-                                   in.from_west.size(), in.from_east.size()})));
+    complete_shift(static_cast<double>(sizeof(double) * flight_.largest()));
     MaybePhase t(timers_, Phase::pack);
-    land_densities(p, in);
+    const auto [west, east] = arrived(flight_.rho);
+    land_densities(p, west, east);
+    if (window_)
+        window_->landed();
 }
 
 double Domain::sum(double v) const {

@@ -30,7 +30,8 @@ using namespace sphperf::sph;
 
 Config parse(int argc, char **argv) {
     Config cfg;
-    std::string setup = "dambreak", grid = "table", boundary = "fixed", decomposition = "equal";
+    std::string setup = "dambreak", grid = "table", boundary = "fixed", decomposition = "equal",
+                halo_transport = "messages";
     std::int64_t steps = 0;
     double end_time = 0;
     cli::App app{"SPH proxy: 2D weakly compressible SPH (dam break, still tank, water column) "
@@ -119,6 +120,13 @@ Config parse(int argc, char **argv) {
                  "Cell+Sorted: exchange ghosts and their densities non-blocking, computing the "
                  "columns that need no ghost while they travel (hidden time: overlap_s, "
                  "comm_hidden_predict_s)");
+    app.add_option("--halo-transport", halo_transport,
+                   "How ghosts and their densities travel between ranks: messages (MPI "
+                   "point-to-point, what sphperf's model costs) or window (an MPI-3 shared-memory "
+                   "window, every rank on one node: packed into the sender's segment, landed from "
+                   "it, no copy between; not with --machine)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"messages", "window"}));
     app.add_option("--reorder-every", cfg.reorder_every,
                    "Cell+Sorted: steps between permuting the particles themselves into cell "
                    "order (0: never; the grid sorts a copy every step either way, and the "
@@ -140,6 +148,11 @@ Config parse(int argc, char **argv) {
     cfg.grid = parse_grid(grid);
     cfg.boundary = parse_boundary(boundary);
     cfg.decomposition = parse_decomposition(decomposition);
+    cfg.halo_transport = parse_halo_transport(halo_transport);
+    if (cfg.halo_transport == HaloTransport::window && cfg.machine)
+        throw UsageError("--halo-transport window with --machine: the inline prediction costs MPI "
+                         "messages, and this transport sends none for ghosts and densities "
+                         "(expected --halo-transport messages)");
     if (cfg.decomposition == Decomposition::balanced && !o_every->count())
         cfg.rebalance_every = cfg.interval;
     if (o_model->count() && cfg.decomposition == Decomposition::balanced) {
@@ -244,6 +257,11 @@ void check_outputs(const Config &cfg, const Geometry &geo, int rank, int ranks) 
     if (rank == 0) {
         try {
             check_memory(cfg, geo, ranks_here, ranks);
+            if (cfg.halo_transport == HaloTransport::window && ranks_here != ranks)
+                throw UsageError("--halo-transport window: " + std::to_string(ranks_here) +
+                                 " of the job's " + std::to_string(ranks) +
+                                 " ranks share this node; expected all of them on one node "
+                                 "(or --halo-transport messages)");
             if (cfg.exchange)
                 (void)exchange_override(*cfg.exchange, model::load_report(*cfg.machine, "machine"),
                                         ranks, omp_get_max_threads());
@@ -414,6 +432,8 @@ void replay_time_shared_comm(RunRecord &rec, const Config &cfg, int threads) {
 
 void simulate(const Config &cfg, const Geometry &geo, int rank) {
     Domain domain(MPI_COMM_WORLD, geo.cell_columns, geo.cell_size);
+    if (cfg.halo_transport == HaloTransport::window)
+        domain.use_window_halo();
     const std::vector<int> pus = domain.gather_int(bound_pu());
     const double profile_probe_s =
         cfg.machine ? attach_message_costs(domain, cfg, pus, omp_get_max_threads()) : 0.0;

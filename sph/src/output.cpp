@@ -128,6 +128,7 @@ nlohmann::json build_report(const RunRecord &run, const Topology &topo) {
     j["config"] = {{"setup", to_string(c.setup)},
                    {"grid", to_string(c.grid)},
                    {"overlap", c.overlap},
+                   {"halo_transport", to_string(c.halo_transport)},
                    {"reorder_every", c.reorder_every},
                    {"boundary", to_string(c.boundary)},
                    {"scale", c.scale},

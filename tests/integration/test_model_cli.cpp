@@ -1530,6 +1530,9 @@ TEST_P(ModelBadInputTest, ExitsTwoWithOneLineAndNoFile) {
         j = load(f.run2);
         j["restart"] = {{"from_step", 100}, {"from", "ck"}};
         std::ofstream(f.dir / "restarted.json") << j.dump();
+        j = load(f.run2);
+        j["config"]["halo_transport"] = "window";
+        std::ofstream(f.dir / "window.json") << j.dump();
     }
     std::string args = GetParam().args;
     for (auto [key, value] : {std::pair<std::string, std::string>{"MACHINE", f.machine.string()},
@@ -1563,6 +1566,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadModelInput{"restarted_run",
                       "calibrate --allow-other-host --machine MACHINE --runs DIR/restarted.json",
                       "continues a checkpoint (sph --restart, from step 100)"},
+        BadModelInput{"window_transport",
+                      "calibrate --allow-other-host --machine MACHINE --runs DIR/window.json",
+                      "ran with sph --halo-transport window, which the model does not cost"},
         BadModelInput{"unknown_setup", "predict --model MODEL --setup tsunami --steps 10",
                       "tsunami"},
         BadModelInput{"unknown_grid", "predict --model MODEL --grid octree --steps 10", "octree"},

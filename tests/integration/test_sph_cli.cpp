@@ -296,6 +296,11 @@ INSTANTIATE_TEST_SUITE_P(
         SphBadInput{"wall_weight_negative", "--decomposition balanced --wall-weight -1 --steps 1",
                     "-1"},
         SphBadInput{"boundary", "--boundary sticky --steps 1", "sticky"},
+        SphBadInput{"halo_transport", "--halo-transport rdma --steps 1", "rdma"},
+        SphBadInput{"window_with_machine",
+                    "--halo-transport window --machine " SPHPERF_RESULTS_DIR
+                    "/reference/vm/machine.json --steps 1",
+                    "--halo-transport window with --machine"},
         SphBadInput{"scale_zero", "--scale 0 --steps 1", "--scale: value 0"},
         SphBadInput{"scale_negative", "--scale -1 --steps 1", "--scale: value -1"},
         SphBadInput{"unstable_dt", "--dt 2e-4 --steps 1", "unstable"},
@@ -332,6 +337,7 @@ INSTANTIATE_TEST_SUITE_P(
 struct Fault {
     std::string name, fault, expect;
     int ranks;
+    std::string extra = "";
 };
 void PrintTo(const Fault &f, std::ostream *os) {
     *os << f.name;
@@ -344,7 +350,7 @@ TEST_P(SphFaultTest, EndsTheWholeJobNamingRankAndStep) {
     const auto report = dir / "r.json";
     const auto r = run("SPHPERF_INJECT_FAULT=" + f.fault + " timeout -k 5 30 " + mpirun(f.ranks) +
                        bin("sph") + " --quiet --setup still --scale 0.5 --steps 40 --interval 10 " +
-                       "--report " + report.string());
+                       "--report " + report.string() + f.extra);
     EXPECT_NE(r.code, 0) << r.err;
     EXPECT_NE(r.code, 124) << "the job hung: " << r.err;
     EXPECT_NE(r.err.find(f.expect), std::string::npos) << r.err;
@@ -365,6 +371,9 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Fault{"throw_r1", "throw:0:3", "step 3: injected fault", 1},
                       Fault{"throw_r2", "throw:1:5", "rank 1 of 2: step 5: injected fault", 2},
                       Fault{"throw_r3", "throw:1:5", "rank 1 of 3: step 5: injected fault", 3},
+                      // Its neighbours spin on the window's sequence words, not in MPI.
+                      Fault{"throw_r3_window", "throw:1:5", "rank 1 of 3: step 5: injected fault",
+                            3, " --grid sorted --overlap --halo-transport window"},
                       Fault{"nan_r1", "nan:0:4",
                             "step 4: fluid particle id 0 has a non-finite velocity", 1},
                       Fault{"nan_r3", "nan:2:3", "rank 2 of 3: step 3:", 3},

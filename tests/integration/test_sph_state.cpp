@@ -50,28 +50,36 @@ TEST_P(SphStateTest, FullStateIsBitwiseTheOneRankOneThreadRun) {
 
 INSTANTIATE_TEST_SUITE_P(
     Sph, SphStateTest,
-    ::testing::Values(Identity{"sorted_1x2", "sorted", 1, 2},
-                      Identity{"sorted_2x1", "sorted", 2, 1},
-                      Identity{"sorted_3x1", "sorted", 3, 1},
-                      Identity{"sorted_4x1", "sorted", 4, 1},
-                      // --overlap: ghosts sorted in after the interior is computed, the same sums
-                      Identity{"sorted_overlap_1x2", "sorted", 1, 2, " --overlap"},
-                      Identity{"sorted_overlap_2x1", "sorted", 2, 1, " --overlap"},
-                      Identity{"sorted_overlap_3x1", "sorted", 3, 1, " --overlap"},
-                      Identity{"sorted_overlap_4x1", "sorted", 4, 1, " --overlap"},
-                      Identity{"table_1x2", "table", 1, 2}, Identity{"list_1x2", "list", 1, 2},
-                      Identity{"table_2x1", "table", 2, 1}, Identity{"table_3x1", "table", 3, 1},
-                      Identity{"list_4x1", "list", 4, 1}),
+    ::testing::Values(
+        Identity{"sorted_1x2", "sorted", 1, 2}, Identity{"sorted_2x1", "sorted", 2, 1},
+        Identity{"sorted_3x1", "sorted", 3, 1}, Identity{"sorted_4x1", "sorted", 4, 1},
+        // --overlap: ghosts sorted in after the interior is computed, the same sums
+        Identity{"sorted_overlap_1x2", "sorted", 1, 2, " --overlap"},
+        Identity{"sorted_overlap_2x1", "sorted", 2, 1, " --overlap"},
+        Identity{"sorted_overlap_3x1", "sorted", 3, 1, " --overlap"},
+        Identity{"sorted_overlap_4x1", "sorted", 4, 1, " --overlap"},
+        // --halo-transport window: the same records, through a shared window
+        Identity{"sorted_window_1x2", "sorted", 1, 2, " --halo-transport window"},
+        Identity{"sorted_window_2x1", "sorted", 2, 1, " --halo-transport window"},
+        Identity{"sorted_window_overlap_3x1", "sorted", 3, 1, " --overlap --halo-transport window"},
+        Identity{"table_window_3x1", "table", 3, 1, " --halo-transport window"},
+        Identity{"table_1x2", "table", 1, 2}, Identity{"list_1x2", "list", 1, 2},
+        Identity{"table_2x1", "table", 2, 1}, Identity{"table_3x1", "table", 3, 1},
+        Identity{"list_4x1", "list", 4, 1}),
     [](const auto &info) { return info.param.name; });
 
 // --overlap with mirror walls (transient mirrors before the ghosts) and slabs re-cut mid-run
-// (sends still pending across a re-cut's migration): bitwise the blocking run.
+// (sends still pending across a re-cut's migration): bitwise the blocking run, with messages
+// and through the shared window.
 TEST(SphState, OverlapWithMirrorsAndRecutsIsTheBlockingRun) {
     const auto dir = scratch("state_overlap_mirror");
     const std::string args = "--scale 0.5 --steps 300 --interval 300 --grid sorted --boundary "
                              "mirror --decomposition balanced --rebalance-every 50";
-    expect_same_particles(run_to_end(dir, "blocking", 3, 1, args),
-                          run_to_end(dir, "overlap", 3, 1, args + " --overlap"));
+    const auto blocking = run_to_end(dir, "blocking", 3, 1, args);
+    expect_same_particles(blocking, run_to_end(dir, "overlap", 3, 1, args + " --overlap"));
+    // And through the shared window, where mirrors make payloads beyond the owned particles.
+    expect_same_particles(blocking, run_to_end(dir, "overlap_window", 3, 1,
+                                               args + " --overlap --halo-transport window"));
 }
 
 // Particles permuted into cell order every 7 steps at 1 and 3 ranks (the permutation meets

@@ -15,15 +15,19 @@ enum class Setup { dambreak, still, column };
 enum class GridKind { list, table, sorted };
 enum class BoundaryKind { mirror, fixed };
 enum class Decomposition { equal, balanced };
+// How ghosts and their densities travel: MPI messages, or an MPI-3 shared-memory window.
+enum class HaloTransport { messages, window };
 
 Setup parse_setup(std::string_view s);
 GridKind parse_grid(std::string_view s);
 BoundaryKind parse_boundary(std::string_view s);
 Decomposition parse_decomposition(std::string_view s);
+HaloTransport parse_halo_transport(std::string_view s);
 std::string_view to_string(Setup s);
 std::string_view to_string(GridKind g);
 std::string_view to_string(BoundaryKind b);
 std::string_view to_string(Decomposition d);
+std::string_view to_string(HaloTransport t);
 
 // Weakly compressible SPH parameters. Values and reasons are in sph/README.md.
 struct Physics {
@@ -126,7 +130,8 @@ struct Config {
     int rebalance_every = 0;                         // steps; 0: the report interval
     std::optional<std::filesystem::path> cost_model; // model.json for cost-aware cuts
     BalanceWeights balance;
-    bool overlap = false;       // non-blocking ghost exchanges behind the interior columns (sorted)
+    bool overlap = false; // non-blocking ghost exchanges behind the interior columns (sorted)
+    HaloTransport halo_transport = HaloTransport::messages;
     int reorder_every = 0;      // steps between permuting the particles into cell order; 0: never
     int speed_gauge_every = 10; // steps between samples of the speed gauge (gauge.hpp); 0: none
     // With it, the core latency gauge's (gauge.hpp) where the rank has two or more threads and

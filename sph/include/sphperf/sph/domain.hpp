@@ -10,9 +10,12 @@
 
 #include <mpi.h>
 
+#include <algorithm>
 #include <array>
 #include <functional>
+#include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -72,6 +75,8 @@ struct ShiftPrediction {
 };
 using ShiftCost =
     std::function<ShiftPrediction(double since_any_s, double since_kind_s, double bytes)>;
+class HaloWindow; // domain.cpp: ghosts and densities through a shared-memory window
+
 // What an overlapped shift leaves exposed (posting and completion) with `behind_s` of compute
 // behind its transfers and `bytes` per payload (exchange --overlapped).
 using ExposedCost = std::function<double(double behind_s, double bytes)>;
@@ -79,6 +84,17 @@ using ExposedCost = std::function<double(double behind_s, double bytes)>;
 class Domain {
 public:
     Domain(MPI_Comm comm, int columns, double cell_size);
+    ~Domain();
+    Domain(const Domain &) = delete;
+    Domain &operator=(const Domain &) = delete;
+
+    // sph --halo-transport window (collective; every rank on one node, else std::runtime_error):
+    // the ghosts and their densities go through an MPI-3 shared-memory window instead of
+    // messages. Each rank packs them straight into its own segment and lands its neighbours'
+    // straight from theirs, so no copy is made in between; the migration stays a message.
+    // Takes effect at the first ghost exchange, whose particles bound every payload (twice all
+    // of the job's: a rank sends at most what it holds, mirrors included).
+    void use_window_halo() { window_wanted_ = slab_.ranks > 1; }
 
     // Where the exchanges' time goes: wait (for a slower neighbour), comm (the transfers), pack
     // (selecting and copying particles). Without timers nothing is timed.
@@ -167,16 +183,32 @@ private:
     template <class T>
     Received<T> shift(const std::vector<T> &to_west, const std::vector<T> &to_east, int tag);
     // A shift in two halves: counts now, payloads posted; then the wait for them.
+    // Returns the counts coming from the west and east.
     template <class T>
-    void post_shift(const std::vector<T> &to_west, const std::vector<T> &to_east, Received<T> &into,
-                    int tag);
+    std::pair<std::size_t, std::size_t>
+    post_shift(std::span<const T> to_west, std::span<const T> to_east, Received<T> &into, int tag);
     void complete_shift(double payload_bytes);
     // Packing of the ghost exchange, shared by the blocking and the split form.
+    // Each particle of the edge columns to `west(record)` and `east(record)`, its index to the
+    // export lists.
+    template <class West, class East> void pack_ghosts(const Particles &p, West west, East east);
     void pack_ghosts(const Particles &p, std::vector<ParticleRecord> &to_west,
                      std::vector<ParticleRecord> &to_east);
-    void land_ghosts(Particles &p, const Received<ParticleRecord> &in);
+    // --halo-transport window: packed straight into this rank's segment.
+    std::pair<std::span<const ParticleRecord>, std::span<const ParticleRecord>>
+    pack_ghosts_into_window(const Particles &p);
+    void land_ghosts(Particles &p, std::span<const ParticleRecord> west,
+                     std::span<const ParticleRecord> east);
     // Received ghost densities into the ghosts' slots.
-    void land_densities(Particles &p, const Received<double> &in) const;
+    void land_densities(Particles &p, std::span<const double> west,
+                        std::span<const double> east) const;
+    // What complete_shift brought: the received vectors, or the neighbours' window segments.
+    template <class T>
+    std::pair<std::span<const T>, std::span<const T>> arrived(const Received<T> &in) const;
+    // --halo-transport window: this rank's buffers toward the west and east for the next
+    // post, once the neighbours landed what they last held (the wait timed as the exchange
+    // `tag`'s comm); nullptr where there is no neighbour.
+    template <class T> std::pair<T *, T *> window_buffers(int tag);
     void wait_for_neighbours(int tag);
     // A zero-byte message each way with both neighbours, untimed: returns once both arrived.
     void handshake(int tag) const;
@@ -215,10 +247,20 @@ private:
         std::vector<double> rho_to_west, rho_to_east;
         Received<double> rho;
         std::vector<MPI_Request> receives, sends;
+        // Particles or densities posted to and coming from each side.
+        std::size_t sent_west = 0, sent_east = 0, recv_west = 0, recv_east = 0;
+        std::size_t largest() const {
+            return std::max({sent_west, sent_east, recv_west, recv_east});
+        }
+        // --halo-transport window: the payloads from the west and east, in their segments.
+        std::pair<std::span<const std::byte>, std::span<const std::byte>> window_in;
         double posted_s = 0, exposed_s = 0; // exposed_s: unhidden, predicted
         std::pair<double, double> gaps;     // since any shift, since one of this kind
         int tag = 0;
     } flight_;
+    std::unique_ptr<HaloWindow> window_;
+    bool window_wanted_ = false;
+    void open_window(const Particles &p); // at the first ghost exchange, when wanted
     MPI_Comm comm_;
     Slab slab_;
     int west_ = MPI_PROC_NULL, east_ = MPI_PROC_NULL;
