@@ -30,8 +30,8 @@ static_assert(std::is_trivially_copyable_v<ParticleRecord>);
 // out (or once by the receiver, above the eager limit), on the ranks' own cores: that copying
 // was most of what an overlapped exchange left exposed (sph/NOTES.md, "Overlap"). Here every
 // rank owns one segment: per direction (0: toward the west neighbour, 1: toward the east) the
-// sequence number of its last post and the payload's bytes, per side the sequence it has
-// landed from that neighbour, and two payload buffers per direction used by turns, so it packs
+// sequence number of its last post and the payloads' bytes on one line, per side the sequence it
+// has landed from that neighbour, and two payload buffers per direction used by turns, so it packs
 // the next payload while its neighbour may still land the last. A sender packs straight into
 // its segment, a receiver lands straight from its neighbour's. Order comes from release stores
 // and acquire loads of the sequence words (the window's memory model is checked unified).
@@ -133,13 +133,14 @@ public:
 
 private:
     static constexpr std::size_t line = 64;
-    static constexpr std::size_t posted_line = 0, landed_line = 2, sizes_line = 4;
+    // A post's sizes share its sequence word's line: a neighbour reads one line per post.
+    static constexpr std::size_t posted_line = 0, landed_line = 2;
     static constexpr std::size_t header = 8 * line;
     static std::uint64_t *word(std::byte *seg, std::size_t l) {
         return reinterpret_cast<std::uint64_t *>(seg + l * line);
     }
     static std::size_t *size_word(std::byte *seg, int dir, std::uint64_t seq) {
-        return reinterpret_cast<std::size_t *>(seg + sizes_line * line) + 2 * dir + (seq & 1);
+        return reinterpret_cast<std::size_t *>(seg + (posted_line + dir) * line) + 1 + (seq & 1);
     }
     std::byte *buffer(std::byte *seg, int dir, std::uint64_t seq) const {
         return seg + header + (2 * static_cast<std::size_t>(dir) + (seq & 1)) * capacity_;
