@@ -30,11 +30,11 @@ static_assert(std::is_trivially_copyable_v<ParticleRecord>);
 // out (or once by the receiver, above the eager limit), on the ranks' own cores: that copying
 // was most of what an overlapped exchange left exposed (sph/NOTES.md, "Overlap"). Here every
 // rank owns one segment: per direction (0: toward the west neighbour, 1: toward the east) the
-// sequence number of its last post and the payloads' bytes on one line, per side the sequence it
-// has landed from that neighbour, and two payload buffers per direction used by turns, so it packs
-// the next payload while its neighbour may still land the last. A sender packs straight into
-// its segment, a receiver lands straight from its neighbour's. Order comes from release stores
-// and acquire loads of the sequence words (the window's memory model is checked unified).
+// sequence number of its last post and the payloads' bytes on one line, and two payload buffers
+// per direction used by turns, so it packs the next payload while its neighbour may still land
+// the last. A sender packs straight into its segment, a receiver lands straight from its
+// neighbour's. Order comes from release stores and acquire loads of the sequence words (the
+// window's memory model is checked unified).
 class HaloWindow {
 public:
     struct Payload {
@@ -86,20 +86,23 @@ public:
     HaloWindow &operator=(const HaloWindow &) = delete;
 
     std::size_t capacity() const { return capacity_; }
-    // This rank's buffer toward `dir` for the next post, once that neighbour has landed what
-    // the buffer held two posts ago; nullptr without a neighbour there.
+    // This rank's buffer toward `dir` for the next post; nullptr without a neighbour there. No
+    // word says a neighbour has landed a payload: each rank takes in every post of its
+    // neighbours before it posts again, and lands what it took before that. The buffer this
+    // rank now fills held its post of two before; the neighbour landed that before it posted
+    // the one this rank last took in (an acquire of that post's sequence word), so the landing
+    // happened before this reuse.
     std::byte *outgoing(int dir) {
-        if (!peer_[dir])
-            return nullptr;
-        const std::uint64_t next = seq_ + 1;
-        // The neighbour lands from its other side: from the east what this rank sends west.
-        spin_until(word(peer_[dir], landed_line + 1 - dir),
-                   next - std::min<std::uint64_t>(next, 2));
-        return buffer(mine_, dir, next);
+        if (awaiting_)
+            throw std::logic_error("--halo-transport window: a post before the last was taken in");
+        return peer_[dir] ? buffer(mine_, dir, seq_ + 1) : nullptr;
     }
     // Posts what outgoing() buffers now hold (bytes toward the west and east).
     void publish(std::size_t west_bytes, std::size_t east_bytes) {
+        if (awaiting_)
+            throw std::logic_error("--halo-transport window: a post before the last was taken in");
         const std::uint64_t next = ++seq_;
+        awaiting_ = true;
         const std::array<std::size_t, 2> bytes{west_bytes, east_bytes};
         for (int dir : {0, 1}) {
             if (!peer_[dir])
@@ -112,8 +115,8 @@ public:
         }
     }
     // The neighbours' payloads of the current post (from the west, from the east), once both
-    // posted it.
-    std::pair<Payload, Payload> incoming() const {
+    // posted it; they stay there until this rank posts twice more.
+    std::pair<Payload, Payload> incoming() {
         auto from = [&](int side) -> Payload {
             std::byte *peer = peer_[side];
             if (!peer)
@@ -122,20 +125,15 @@ public:
             spin_until(word(peer, posted_line + dir), seq_);
             return {buffer(peer, dir, seq_), *size_word(peer, dir, seq_)};
         };
+        awaiting_ = false;
         return {from(0), from(1)};
-    }
-    // Both neighbours may reuse the buffers of the current post.
-    void landed() {
-        for (int side : {0, 1})
-            std::atomic_ref<std::uint64_t>(*word(mine_, landed_line + side))
-                .store(seq_, std::memory_order_release);
     }
 
 private:
     static constexpr std::size_t line = 64;
     // A post's sizes share its sequence word's line: a neighbour reads one line per post.
-    static constexpr std::size_t posted_line = 0, landed_line = 2;
-    static constexpr std::size_t header = 8 * line;
+    static constexpr std::size_t posted_line = 0;
+    static constexpr std::size_t header = 2 * line;
     static std::uint64_t *word(std::byte *seg, std::size_t l) {
         return reinterpret_cast<std::uint64_t *>(seg + l * line);
     }
@@ -167,6 +165,7 @@ private:
     std::byte *mine_ = nullptr;
     std::array<std::byte *, 2> peer_{};
     std::uint64_t seq_ = 0; // posts so far; every rank posts the same exchanges in turn
+    bool awaiting_ = false; // posted, the neighbours' posts not yet taken in
 };
 
 int Slab::owner_of_column(int column) const {
@@ -455,21 +454,14 @@ void Domain::pack_ghosts(const Particles &p, std::vector<ParticleRecord> &to_wes
         [&](const ParticleRecord &r) { to_east.push_back(r); });
 }
 
-template <class T> std::pair<T *, T *> Domain::window_buffers(int tag) {
-    const double start = wall_seconds();
-    std::pair<T *, T *> out;
-    {
-        MaybePhase t(timers_, Phase::comm);
-        out = {reinterpret_cast<T *>(window_->outgoing(0)),
-               reinterpret_cast<T *>(window_->outgoing(1))};
-    }
-    tally_.shift_s[shift_index(tag)] += wall_seconds() - start;
-    return out;
+template <class T> std::pair<T *, T *> Domain::window_buffers() {
+    return {reinterpret_cast<T *>(window_->outgoing(0)),
+            reinterpret_cast<T *>(window_->outgoing(1))};
 }
 
 std::pair<std::span<const ParticleRecord>, std::span<const ParticleRecord>>
 Domain::pack_ghosts_into_window(const Particles &p) {
-    const auto [west, east] = window_buffers<ParticleRecord>(tag_ghost);
+    const auto [west, east] = window_buffers<ParticleRecord>();
     MaybePhase t(timers_, Phase::pack);
     const std::size_t room = window_->capacity() / sizeof(ParticleRecord);
     std::size_t nw = 0, ne = 0;
@@ -718,8 +710,6 @@ ExchangeCounts Domain::finish_ghosts(Particles &p) {
     complete_shift(static_cast<double>(sizeof(ParticleRecord) * flight_.largest()));
     const auto [west, east] = arrived(flight_.ghosts);
     land_ghosts(p, west, east);
-    if (window_)
-        window_->landed();
     return {flight_.sent_west + flight_.sent_east, west.size() + east.size()};
 }
 
@@ -728,7 +718,7 @@ void Domain::begin_ghost_density(const Particles &p) {
         return;
     std::span<const double> west, east;
     if (window_) {
-        const auto [w, e] = window_buffers<double>(tag_density);
+        const auto [w, e] = window_buffers<double>();
         MaybePhase t(timers_, Phase::pack);
         for (std::size_t k = 0; k < export_west_.size(); ++k) // empty without a west neighbour
             w[k] = p.rho[export_west_[k]];
@@ -753,8 +743,6 @@ void Domain::finish_ghost_density(Particles &p) {
     MaybePhase t(timers_, Phase::pack);
     const auto [west, east] = arrived(flight_.rho);
     land_densities(p, west, east);
-    if (window_)
-        window_->landed();
 }
 
 double Domain::sum(double v) const {

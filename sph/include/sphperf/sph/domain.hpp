@@ -205,10 +205,9 @@ private:
     // What complete_shift brought: the received vectors, or the neighbours' window segments.
     template <class T>
     std::pair<std::span<const T>, std::span<const T>> arrived(const Received<T> &in) const;
-    // --halo-transport window: this rank's buffers toward the west and east for the next
-    // post, once the neighbours landed what they last held (the wait timed as the exchange
-    // `tag`'s comm); nullptr where there is no neighbour.
-    template <class T> std::pair<T *, T *> window_buffers(int tag);
+    // --halo-transport window: this rank's buffers toward the west and east for the next post
+    // (nullptr where there is no neighbour).
+    template <class T> std::pair<T *, T *> window_buffers();
     void wait_for_neighbours(int tag);
     // A zero-byte message each way with both neighbours, untimed: returns once both arrived.
     void handshake(int tag) const;
