@@ -115,7 +115,8 @@ public:
         }
     }
     // The neighbours' payloads of the current post (from the west, from the east), once both
-    // posted it; they stay there until this rank posts twice more.
+    // posted it; they stay there until this rank posts again (a neighbour refills that buffer
+    // only after taking in this rank's next post).
     std::pair<Payload, Payload> incoming() {
         auto from = [&](int side) -> Payload {
             std::byte *peer = peer_[side];
