@@ -508,7 +508,7 @@ ExchangeCounts Domain::exchange_ghosts(Particles &p) {
     open_window(p);
     if (window_) { // the same post and completion, back to back
         begin_ghosts(p);
-        return finish_ghosts(p);
+        return land_ghosts_posted(p, false);
     }
     std::vector<ParticleRecord> to_west, to_east;
     pack_ghosts(p, to_west, to_east);
@@ -518,12 +518,16 @@ ExchangeCounts Domain::exchange_ghosts(Particles &p) {
 }
 
 namespace {
+// The densities of the particles `idx`, in order, from `out` on.
+void densities_of(const Particles &p, const std::vector<std::uint32_t> &idx, double *out) {
+    for (auto i : idx)
+        *out++ = p.rho[i];
+}
 // Into `out`, whose buffer is kept: --overlap packs into the same vectors every step.
 void densities_of(const Particles &p, const std::vector<std::uint32_t> &idx,
                   std::vector<double> &out) {
-    out.clear();
-    for (auto i : idx)
-        out.push_back(p.rho[i]);
+    out.resize(idx.size());
+    densities_of(p, idx, out.data());
 }
 } // namespace
 
@@ -532,7 +536,7 @@ void Domain::refresh_ghost_density(Particles &p) {
         return;
     if (window_) {
         begin_ghost_density(p);
-        finish_ghost_density(p);
+        land_densities_posted(p, false);
         return;
     }
     std::optional<MaybePhase> pack(std::in_place, timers_, Phase::pack);
@@ -640,7 +644,7 @@ std::pair<std::size_t, std::size_t> Domain::post_shift(std::span<const T> to_wes
     return {flight_.recv_west, flight_.recv_east};
 }
 
-void Domain::complete_shift(double payload_bytes) {
+void Domain::complete_shift(double payload_bytes, bool overlapped) {
     const double window = wall_seconds() - flight_.posted_s;
     {
         MaybePhase t(timers_, Phase::comm);
@@ -659,7 +663,8 @@ void Domain::complete_shift(double payload_bytes) {
         last_end_cpu_s_ = thread_cpu_seconds();
     const std::size_t k = shift_index(flight_.tag);
     tally_.shift_s[k] += end - flight_.posted_s - window;
-    tally_.overlap_s += window;
+    if (overlapped)
+        tally_.overlap_s += window;
     tally_.hockney_s += shift_hockney_s_;
     // What stays exposed, predicted. Measured whole when the exchange benchmark ran overlapped
     // (posting and completing the same messages with this much compute behind them: on one node
@@ -678,7 +683,8 @@ void Domain::complete_shift(double payload_bytes) {
     tally_.predicted_s += exposed;
     tally_.shift_predict_s[k] += exposed;
     tally_.shift_predict_own_kind_s[k] += exposed;
-    tally_.hidden_predict_s += std::max(0.0, blocking - exposed);
+    if (overlapped)
+        tally_.hidden_predict_s += std::max(0.0, blocking - exposed);
 }
 
 void Domain::complete_sends() {
@@ -708,7 +714,11 @@ ExchangeCounts Domain::finish_ghosts(Particles &p) {
         ghosts_from_west_ = 0;
         return {};
     }
-    complete_shift(static_cast<double>(sizeof(ParticleRecord) * flight_.largest()));
+    return land_ghosts_posted(p, true);
+}
+
+ExchangeCounts Domain::land_ghosts_posted(Particles &p, bool overlapped) {
+    complete_shift(static_cast<double>(sizeof(ParticleRecord) * flight_.largest()), overlapped);
     const auto [west, east] = arrived(flight_.ghosts);
     land_ghosts(p, west, east);
     return {flight_.sent_west + flight_.sent_east, west.size() + east.size()};
@@ -721,10 +731,8 @@ void Domain::begin_ghost_density(const Particles &p) {
     if (window_) {
         const auto [w, e] = window_buffers<double>();
         MaybePhase t(timers_, Phase::pack);
-        for (std::size_t k = 0; k < export_west_.size(); ++k) // empty without a west neighbour
-            w[k] = p.rho[export_west_[k]];
-        for (std::size_t k = 0; k < export_east_.size(); ++k)
-            e[k] = p.rho[export_east_[k]];
+        densities_of(p, export_west_, w); // an export list is empty without its neighbour
+        densities_of(p, export_east_, e);
         west = {w, export_west_.size()};
         east = {e, export_east_.size()};
     } else {
@@ -740,7 +748,11 @@ void Domain::begin_ghost_density(const Particles &p) {
 void Domain::finish_ghost_density(Particles &p) {
     if (slab_.ranks == 1)
         return;
-    complete_shift(static_cast<double>(sizeof(double) * flight_.largest()));
+    land_densities_posted(p, true);
+}
+
+void Domain::land_densities_posted(Particles &p, bool overlapped) {
+    complete_shift(static_cast<double>(sizeof(double) * flight_.largest()), overlapped);
     MaybePhase t(timers_, Phase::pack);
     const auto [west, east] = arrived(flight_.rho);
     land_densities(p, west, east);

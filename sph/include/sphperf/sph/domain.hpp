@@ -187,7 +187,12 @@ private:
     template <class T>
     std::pair<std::size_t, std::size_t>
     post_shift(std::span<const T> to_west, std::span<const T> to_east, Received<T> &into, int tag);
-    void complete_shift(double payload_bytes);
+    // `overlapped`: compute ran between posting and completing (booked as overlap_s); false
+    // for the window's blocking exchanges, posted and completed back to back.
+    void complete_shift(double payload_bytes, bool overlapped);
+    // The posted ghost or density exchange completed and landed.
+    ExchangeCounts land_ghosts_posted(Particles &p, bool overlapped);
+    void land_densities_posted(Particles &p, bool overlapped);
     // Packing of the ghost exchange, shared by the blocking and the split form.
     // Each particle of the edge columns to `west(record)` and `east(record)`, its index to the
     // export lists.
