@@ -31,6 +31,7 @@ else
 fi
 # A replay of a stored job predicts its runs' own length (scripts/replay-job.sh sets it).
 v_steps=${REPLAY_V_STEPS:-$v_steps}
+v2_steps=${REPLAY_V2_STEPS:-$v2_steps}
 
 # The model sees the calibration runs only; the validation reports are read after predicting.
 # model_and_validate DIR RULE PROFILE [WEIGHTS [SHARING]]: calibrate with the compute-cost term

@@ -945,7 +945,7 @@ def markdown(model, validation, args, out):
              "on the AMD host's 23 stored jobs 3.30 / 11.3 against 3.47 / 11.7 %): **tuned**. With "
              "round a only (sessions 38-43's calibration) on the same validation runs: {o} "
              "(round-a-list-table/validation.json)."),
-            (any("_s0.5_list_b" in r["path"] or "_s0.5_table_b" in r["path"]
+            (any("dambreak_s0.5_list_b" in r["path"] or "dambreak_s0.5_table_b" in r["path"]
                  for r in model["calibration_runs"]),
              "long-dambreak-round-a",
              "Cell+List's and Cell+Table's long dam breaks (at scale 0.35 in sessions 46-54, 0.5 "
@@ -1104,7 +1104,8 @@ def markdown(model, validation, args, out):
                 not_compared.append(subdir)
         paths = [r["path"] for r in model["calibration_runs"]]
         if (any("_list_b" in p or "_table_b" in p for p in paths)
-                and not any("_s0.5_list_b" in p or "_s0.5_table_b" in p for p in paths)):
+                and not any("dambreak_s0.5_list_b" in p or "dambreak_s0.5_table_b" in p
+                            for p in paths)):
             # No comparison on this job's runs: the runs it would need are the ones not made.
             lines.append(
                 "Cell+List's and Cell+Table's long dam breaks (scale 0.5, 1000 steps) in round a "

@@ -59,11 +59,17 @@ for re in "$exclude" "$include"; do
     grep -E -q -- "$re" <<<"" 2>/dev/null || rc=$?
     [ "$rc" -le 1 ] || die "'$re': not an extended regular expression"
 done
-# The scale-1 dam breaks' length as the job ran them (1500 steps until session 59, 1000 since).
-probe="$runs/val_dambreak_s1_table_r1.json"
-if [ "$quick" -eq 0 ] && [ -f "$probe" ]; then
-    REPLAY_V_STEPS=$(/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["config"]["steps"])' "$probe") ||
-        die "'$probe': no config.steps"
+# The dam breaks' lengths as the job ran them: scale 1's (1500 steps until session 59, 1000
+# since) and scale 2's (500 until session 89, 1000 since).
+run_steps() { # run_steps REPORT: its config.steps
+    /usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["config"]["steps"])' "$1" ||
+        die "'$1': no config.steps"
+}
+if [ "$quick" -eq 0 ]; then
+    probe="$runs/val_dambreak_s1_table_r1.json"
+    [ -f "$probe" ] && REPLAY_V_STEPS=$(run_steps "$probe")
+    probe="$runs/val_dambreak_s2_table_r2.json"
+    [ -f "$probe" ] && REPLAY_V2_STEPS=$(run_steps "$probe")
 fi
 source "$root/scripts/model-set.sh"
 shopt -s nullglob

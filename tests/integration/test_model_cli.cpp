@@ -2076,7 +2076,11 @@ TEST(ModelCli, ReplayJobCalibratesOnTheRunsItKeeps) {
     ASSERT_EQ(all.code, 0) << all.err;
     const auto all_model = load(whole / "model.json");
     ASSERT_TRUE(all_model["disorder"]["dambreak"]["table"].contains("by_column"));
-    check_list_order(all_model, "cal_dambreak_s0.5_table_b");
+    // The last round's long table dam break (round b's in jobs of sessions 46-89, round a's
+    // alone since session 90).
+    check_list_order(all_model, fs::exists(runs / "cal_dambreak_s0.5_table_b.json")
+                                    ? "cal_dambreak_s0.5_table_b"
+                                    : "cal_dambreak_s0.5_table_a");
     auto wall_sum = [](const std::vector<fs::path> &reports) {
         double s = 0;
         for (const auto &p : reports)
