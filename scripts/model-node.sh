@@ -442,7 +442,7 @@ beside_pids=()
 # In --quick their figures mean nothing: one of each kind checks that its path runs (another
 # calibration subset, a calibrate option, a predict option, another term rule and profile),
 # 5 of the 18 (the other 13 took about 5 s of the quick job's 2 minutes).
-quick_comparisons=" first-runs sqrt-jitter froude-order no-profile pooled-one-percent "
+quick_comparisons=" first-runs sqrt-jitter simulated-order no-profile pooled-one-percent "
 beside() { # beside model_and_validate DIR ...: in the background, stdout dropped, nproc at once
     [ "$quick" -eq 0 ] || [[ "$quick_comparisons" == *" $(basename "$2") "* ]] || return 0
     while [ "$(jobs -rp | wc -l)" -ge "$(nproc)" ]; do sleep 0.1; done
@@ -524,14 +524,14 @@ beside model_and_validate "$out/time-shared-replay-4ms" "$rule" froude relative 
 # columns' (session 56: the disorder sits where the water moves, model/NOTES.md).
 beside model_and_validate "$out/one-order-per-run" "$rule" froude relative replay \
     "--rank-disorder none"
-# Each equal slab's Cell+Table memory order carried with its columns at the target's Froude time
-# (sessions 56-58) instead of to the whole water's at its simulated time (session 59).
-beside model_and_validate "$out/froude-order" "$rule" froude relative replay \
-    "--memory-order-time froude"
-# The cost following all of the order's carry to simulated time (sessions 59-72) instead of half
-# of it (session 73: the cost's course through the runs, model/NOTES.md).
+# Each equal Cell+Table slab's memory order carried to the whole water's at the target's
+# simulated time (sessions 59-89, half of the cost's carry since session 73) instead of with its
+# columns at the target's Froude time (sessions 56-58 and since session 90, model-set.sh).
+beside model_and_validate "$out/simulated-order" "$rule" froude relative replay \
+    "--memory-order-time simulated"
+# The same with the cost following all of the order's carry to simulated time (sessions 59-72).
 beside model_and_validate "$out/full-carry" "$rule" froude relative replay \
-    "--memory-order-carry 1"
+    "--memory-order-time simulated --memory-order-carry 1"
 # Every prediction at the median calibration run's host speed (sessions 50-74), where the list
 # and table dam breaks, the long single runs, are now at the host's mean speed (session 75).
 beside model_and_validate "$out/median-host-speed" "$rule" froude relative replay \

@@ -10,7 +10,8 @@
 # dam breaks at 0.5 (c5_steps) cover the validation's simulated time, 0.1 s (1000 steps of
 # 0.1 ms; 1500 in session 59, 0.106 s in sessions 55-58): Cell+Table's memory order follows
 # simulated time, and predict carries each slab's to the whole water's there
-# (--memory-order-time simulated, session 59). The models reported beside it for comparison may
+# (--memory-order-time simulated, sessions 59-89; the model reads it at Froude time since session
+# 90, and the comparison simulated-order/ needs the record). The models reported beside it may
 # select the memory-order term, which needs the same; a prediction they cannot make from these
 # runs is listed as such. The scale-1 dam breaks run 1000 steps since session 60 (1500 before):
 # on the Zen 3 host of session 60 the job took 10:47-11:33 with 1500 and 9:00-9:56 with 1200,
@@ -56,6 +57,14 @@ model_and_validate() {
         "${cal_extra[@]}" --out "$dir/model.json"
 
     stage "predictions ($rule)"
+    # The memory order at the target's Froude time (predict --memory-order-time froude), the
+    # model since session 90 (sessions 56-58's too; simulated time, predict's default, in
+    # sessions 59-89): over 90 main jobs paired, the list and table dam breaks' mean errors
+    # +0.9 to +7.1 % at simulated time and -1.6 to +3.9 % at Froude time, the jobs' max 0.22
+    # points lower (standard error 0.09; model/NOTES.md, session 90): **tuned**. A comparison
+    # model's own --memory-order-time (predict_extra) replaces it.
+    local order=(--memory-order-time froude)
+    if [[ " ${predict_extra[*]} " == *" --memory-order-time "* ]]; then order=(); fi
     predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
         local name=$1 threads=1
         shift
@@ -63,8 +72,8 @@ model_and_validate() {
         # The model in use must predict everything; a comparison model may refuse a
         # configuration its calibration cannot reach (exit 2, its one line kept).
         "$build/bin/sphmodel" predict --model "$dir/model.json" --threads "$threads" \
-            --interval "$interval" --time-sharing-overhead "$sharing" "${predict_extra[@]}" \
-            --out "$dir/prediction_$name.json" "$@" 2>"$dir/$name.err" || {
+            --interval "$interval" --time-sharing-overhead "$sharing" "${order[@]}" \
+            "${predict_extra[@]}" --out "$dir/prediction_$name.json" "$@" 2>"$dir/$name.err" || {
             local rc=$?
             if [ "$dir" = "$out" ] || [ "$rc" -ne 2 ]; then
                 cat "$dir/$name.err" >&2
