@@ -11,9 +11,9 @@
 # Writes DIR/{model,prediction_*,validation}.json (sphmodel's), prints validate's table and the
 # calibration's cost: the run time of the calibration runs kept over that of the validation runs
 # (the reports' wall_s, without the launcher's start-up). Nothing is timed: runs beside anything.
-# Environment: CAL_EXTRA, more calibrate options; PREDICT_EXTRA, more predict options (a job
-# stored before session 59, whose list and table memory-order record ends at 0.11 s, predicts
-# the scale-1 dam breaks with PREDICT_EXTRA="--memory-order-time froude"); REPLAY_RULE, the
+# Environment: CAL_EXTRA, more calibrate options; PREDICT_EXTRA, more predict options (the
+# model reads the memory order at Froude time since session 90, which any stored job's record
+# reaches; PREDICT_EXTRA="--memory-order-time simulated" is sessions 59-89's); REPLAY_RULE, the
 # compute-cost term rule (calibrate --term-selection; default the main job's, levelled-best).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
