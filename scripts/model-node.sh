@@ -525,9 +525,12 @@ beside model_and_validate "$out/time-shared-replay-4ms" "$rule" froude relative 
 # columns' (session 56: the disorder sits where the water moves, model/NOTES.md).
 beside model_and_validate "$out/one-order-per-run" "$rule" froude relative replay \
     "--rank-disorder none"
+# Each equal slab's memory order with its columns at the target's Froude time (sessions 56-58
+# and 90) instead of at its simulated time (since session 91, model-set.sh).
+beside model_and_validate "$out/froude-order" "$rule" froude relative replay \
+    "--memory-order-time froude"
 # Each equal Cell+Table slab's memory order carried to the whole water's at the target's
-# simulated time (sessions 59-89, half of the cost's carry since session 73) instead of with its
-# columns at the target's Froude time (sessions 56-58 and since session 90, model-set.sh).
+# simulated time (sessions 59-89, half of the cost's carry since session 73).
 beside model_and_validate "$out/simulated-order" "$rule" froude relative replay \
     "--memory-order-time simulated"
 # The same with the cost following all of the order's carry to simulated time (sessions 59-72).

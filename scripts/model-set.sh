@@ -57,13 +57,16 @@ model_and_validate() {
         "${cal_extra[@]}" --out "$dir/model.json"
 
     stage "predictions ($rule)"
-    # The memory order at the target's Froude time (predict --memory-order-time froude), the
-    # model since session 90 (sessions 56-58's too; simulated time, predict's default, in
-    # sessions 59-89): over 90 main jobs paired, the list and table dam breaks' mean errors
-    # +0.9 to +7.1 % at simulated time and -1.6 to +3.9 % at Froude time, the jobs' max 0.22
-    # points lower (standard error 0.09; model/NOTES.md, session 90): **tuned**. A comparison
+    # Each slab's memory order from its columns' at the target's simulated time (predict
+    # --memory-order-time columns, since session 91): the calibration record's per-column
+    # descents at the same simulated time, columns at their relative place, put the 4-rank
+    # dam breaks' ranks within 0-8 % of the descents they count, where Froude time (session 90)
+    # read the back rank 41 % low at scale 2. Replayed on 92 stored main jobs against Froude
+    # time: the 4-rank scale-2 table dam break's mean error +3.9 -> +2.2 %, the jobs' max 0.13
+    # points lower (standard error 0.06; model/NOTES.md, session 91): **tuned**. Session 90's
+    # rule (froude) and sessions 59-89's (simulated) are validated beside. A comparison
     # model's own --memory-order-time (predict_extra) replaces it.
-    local order=(--memory-order-time froude)
+    local order=(--memory-order-time columns)
     if [[ " ${predict_extra[*]} " == *" --memory-order-time "* ]]; then order=(); fi
     predict() { # predict NAME [--threads T] ARGS... (1 thread per rank unless given)
         local name=$1 threads=1

@@ -982,7 +982,25 @@ def markdown(model, validation, args, out):
                  f"; with all of the carry (sessions 59-72): {untuned('full-carry')} "
                  "(full-carry/validation.json)." if untuned("full-carry") else ".")),
             ("by_column" in (model.get("disorder") or {}).get("dambreak", {}).get("table", {})
-             and order_time() != "froude",
+             and order_time() == "columns",
+             "froude-order",
+             "Each equal slab's Cell+Table memory order read from its own columns at the "
+             "target's simulated time (predict --memory-order-time columns), since session 91: "
+             "the calibration record's per-column descents per interaction at the same simulated "
+             "time, columns at their relative place, came within 0-8 % of the back and front "
+             "ranks' own counts in the 4-rank dam breaks at scales 1 and 2, where read at Froude "
+             "time (session 90) the back rank's were 41 % low at scale 2; the whole water's cost "
+             "still follows the Froude-time profile. Replayed on 92 stored main jobs of sessions "
+             "82-90 against Froude time: the 4-rank scale-2 table dam break's mean error +3.9 -> "
+             "+2.2 %, the 3- and 4-rank scale-1 ones +0.4 / +1.3 -> -0.5 / -0.9 %, the jobs' max "
+             "0.13 points lower (standard error 0.06), both targets met in 55 jobs either way: "
+             "**tuned** (model/NOTES.md, session 91). With the order at Froude time (session 90) "
+             "on the same runs: {o} (froude-order/validation.json)" + (
+                 f"; carried to the whole water's at simulated time (sessions 73-89): "
+                 f"{untuned('simulated-order')} (simulated-order/validation.json)."
+                 if untuned("simulated-order") else ".")),
+            ("by_column" in (model.get("disorder") or {}).get("dambreak", {}).get("table", {})
+             and order_time() == "simulated",
              "froude-order",
              "Each equal slab's Cell+Table memory order carried to the whole water's at the "
              "target's simulated time (predict --memory-order-time simulated), since session 59: "

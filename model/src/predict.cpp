@@ -781,12 +781,13 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     if (!(req.memory_order_carry >= 0 && req.memory_order_carry <= 1))
         throw UsageError("--memory-order-carry " + std::to_string(req.memory_order_carry) +
                          ": expected a share from 0 to 1");
-    if (req.memory_order_time != "simulated" && req.memory_order_time != "froude")
+    if (req.memory_order_time != "simulated" && req.memory_order_time != "froude" &&
+        req.memory_order_time != "columns")
         throw UsageError("--memory-order-time '" + req.memory_order_time +
-                         "': expected simulated or froude");
+                         "': expected simulated, froude or columns");
     // Only with the Froude-time profile: its cost was measured at the whole water's order at
     // that Froude time (SlabOrder::all), from which each slab is carried.
-    if (req.memory_order_time == "froude" || !c.column_disorder || c.profile.empty())
+    if (req.memory_order_time != "simulated" || !c.column_disorder || c.profile.empty())
         c.order_level.reset();
     if (c.order_level)
         try {
@@ -837,9 +838,10 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
         {"compute_time_profile", c.profile.empty() ? "none" : "froude"},
         {"core_round_trip_s", c.core_round_trip.is_null() ? json(nullptr) : c.core_round_trip},
         {"rank_disorder", c.column_disorder ? "columns" : "none"},
-        {"memory_order_time", c.order_level       ? "simulated"
-                              : c.column_disorder ? "froude"
-                                                  : "none"}};
+        {"memory_order_time", c.order_level ? "simulated"
+                              : c.column_disorder
+                                  ? (req.memory_order_time == "columns" ? "columns" : "froude")
+                                  : "none"}};
     if (c.order_level)
         out["model_source"]["memory_order_carry"] = req.memory_order_carry;
     if (c.column_disorder)
@@ -943,9 +945,17 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                                         tgt.tank_length, tgt.columns, tgt.fluid_particles);
                     double step_s = 0, bubble_s = 0;
                     std::optional<ColumnDisorder::SlabOrder> slabs;
+                    // columns: each column's order read at the target's simulated time (the
+                    // record at the same time, the columns at their relative place): a column's
+                    // descents follow simulated time as the whole water's do, back columns
+                    // too (model/NOTES.md, session 91). froude: at its Froude time.
                     if (c.column_disorder)
-                        slabs = c.column_disorder->slab_order(t, req.scale, tgt.cell_size,
-                                                              tgt.tank_length, tgt.columns, cuts);
+                        slabs = c.column_disorder->slab_order(
+                            t,
+                            req.memory_order_time == "columns" && !balanced
+                                ? c.column_disorder->scale
+                                : req.scale,
+                            tgt.cell_size, tgt.tank_length, tgt.columns, cuts);
                     // Equal slabs only: a balanced run's re-cuts refile its particles, and it
                     // keeps its order (0.12 descents per interaction at 0.15 s against 0.31),
                     // which the Froude-time record matches better (validate's memory-order

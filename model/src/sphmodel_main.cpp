@@ -222,9 +222,10 @@ int run(int argc, char **argv) {
                     "Table: each equal slab's memory order carried to the whole water's at the "
                     "target's simulated time (simulated: the descents follow the particles' "
                     "jitter, model/NOTES.md session 59), or with its columns at the target's "
-                    "Froude time (froude: the model of sessions 56-58)")
+                    "Froude time (froude: sessions 56-58 and 90), or each column's own order at "
+                    "the target's simulated time (columns: the main job's since session 91)")
         ->capture_default_str()
-        ->check(cli::IsMember({"simulated", "froude"}));
+        ->check(cli::IsMember({"simulated", "froude", "columns"}));
     pre->add_option("--memory-order-carry", q.memory_order_carry,
                     "With --memory-order-time simulated: the share of the order's carry from "
                     "Froude time to simulated time that its cost follows, 0 (none: the cost as "

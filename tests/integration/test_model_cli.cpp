@@ -953,6 +953,17 @@ TEST(ModelCli, EachRankTakesTheMemoryOrderOfItsColumns) {
     EXPECT_LT(fc.front(), 1.0);
     EXPECT_GT(fc.back(), 1.0);
     EXPECT_LT(fc.front(), fc.back());
+    // --memory-order-time columns reads the record's columns at the target's simulated time:
+    // at the record's own scale that is its Froude time, so the factors are the same.
+    const auto [sim_cols, sim_cols_out] =
+        predict(planted, " --memory-order-time columns", "columns_simulated");
+    ASSERT_EQ(sim_cols.code, 0) << sim_cols.err;
+    const auto psc = load(sim_cols_out);
+    EXPECT_EQ(psc["model_source"]["memory_order_time"], "columns");
+    const auto fsc = factors(psc);
+    ASSERT_EQ(fsc.size(), fc.size());
+    for (std::size_t r = 0; r < fc.size(); ++r)
+        EXPECT_NEAR(fsc[r], fc[r], 1e-12) << r;
     const auto [none, none_out] = predict(planted, " --rank-disorder none", "none");
     ASSERT_EQ(none.code, 0) << none.err;
     const auto pn = load(none_out);
