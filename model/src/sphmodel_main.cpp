@@ -25,6 +25,7 @@ struct Options {
     std::string speed_gauge = "run";
     std::string gauge_reference = "pooled";
     std::string gauge_elasticity = "one";
+    std::string order_line_gauge = "interval";
     bool walls_term = false;
     std::string jitter_form = "auto";
     std::string item_cost_bound = "particle";
@@ -106,6 +107,13 @@ int run(int argc, char **argv) {
                     "model/NOTES.md session 74)")
         ->capture_default_str()
         ->check(cli::IsMember({"fitted", "one"}));
+    cal->add_option("--order-line-gauge", o.order_line_gauge,
+                    "The memory order's cost line over times put at one speed within each run "
+                    "by the speed gauge around every interval (interval: a slow spell inside "
+                    "the long run flattened it otherwise, model/NOTES.md session 91) or at the "
+                    "run's whole speed only, as the other fits (run: sessions 56-90)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"interval", "run"}));
     cal->add_flag("--walls-term", o.walls_term,
                   "Also offer the compute-cost term walls (every wall particle of a rank), as "
                   "sessions 1-50 did (a rank's dry walls cost nothing measurable: model/NOTES.md, "
@@ -294,6 +302,7 @@ int run(int argc, char **argv) {
                                                 : SpeedGauge::off,
              o.gauge_reference == "pooled" ? GaugeReference::pooled : GaugeReference::grid,
              o.gauge_elasticity == "one" ? GaugeElasticity::one : GaugeElasticity::fitted,
+             o.order_line_gauge == "run" ? OrderLineGauge::run : OrderLineGauge::interval,
              o.walls_term,
              o.jitter_form == "auto"   ? std::nullopt
              : o.jitter_form == "sqrt" ? std::optional<JitterForm>(JitterForm::sqrt)

@@ -130,6 +130,10 @@ enum class GaugeReference { grid, pooled };
 // estimate is flattened by the gauge sample's noise: between repeats it reads 0.92 (Cell+List
 // and Cell+Table) and 1.01 (Cell+Sorted) pooled over sixteen jobs (model/NOTES.md, session 74).
 enum class GaugeElasticity { fitted, one };
+// The memory order's cost line (ColumnDisorder) over times put at one speed within each run by
+// the speed gauge around every interval (interval, since session 91), or at the run's speed
+// alone as every other fit (run).
+enum class OrderLineGauge { interval, run };
 struct CalibrateOptions {
     bool allow_other_host = false;
     TermSelection term_selection = TermSelection::levelled_one_se;
@@ -141,6 +145,7 @@ struct CalibrateOptions {
     SpeedGauge speed_gauge = SpeedGauge::run;
     GaugeReference gauge_reference = GaugeReference::pooled;
     GaugeElasticity gauge_elasticity = GaugeElasticity::one;
+    OrderLineGauge order_line_gauge = OrderLineGauge::interval;
     // Offer the cost term `walls` (every wall particle of a rank) to the term selection, as
     // sessions 1-50 did; session 51 measured that a rank's dry walls cost nothing (calibrate.cpp).
     bool walls_term = false;
