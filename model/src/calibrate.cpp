@@ -618,28 +618,6 @@ json cell_move_fit(const std::vector<Point> &pts) {
 // Per setup and grid (each grid visits candidates in its own order), the memory-order decay of
 // the stored-list runs reaching furthest in simulated time (the mean of those with the same
 // record times: rounds of the same configuration).
-// The runs with each interval's times divided by its speed gauge over the run's whole (the
-// median over +-speed_gauge_half_window intervals, SphRun::interval_gauges_s): the run's
-// level stays, a spell within it goes. The cost line over the memory order is fitted within
-// runs (one level per run) on the one long run that spans the order, and a spell of a slow
-// host inside it (gauge 1.3-1.45 times the run's for a few intervals) flattened the line to
-// R^2 0.002 in a session 91 job, which then predicted every slab at the whole water's order
-// (model/NOTES.md, session 91). Runs without gauge samples stay as they are.
-std::vector<SphRun> within_run_speed(std::vector<SphRun> runs) {
-    for (auto &r : runs) {
-        const double whole = r.gauge_per_sample_s();
-        const auto around = r.interval_gauges_s(speed_gauge_half_window);
-        if (!(whole > 0) || around.size() != r.intervals.size() ||
-            std::any_of(around.begin(), around.end(), [](double g) { return !(g > 0); }))
-            continue;
-        std::vector<double> inverse;
-        for (double g : around)
-            inverse.push_back(whole / g);
-        r.scale_times(inverse);
-    }
-    return runs;
-}
-
 json disorder_by_setup(const std::vector<SphRun> &runs, bool interval_gauge) {
     std::map<std::pair<std::string, std::string>, std::vector<SphRun>> longest;
     auto end_of = [](const SphRun &r) { return r.intervals.back().time_s; };
@@ -666,7 +644,7 @@ json disorder_by_setup(const std::vector<SphRun> &runs, bool interval_gauge) {
     }
     if (interval_gauge)
         for (auto &[key, v] : longest)
-            v = within_run_speed(std::move(v));
+            v = within_run_speed(std::move(v), speed_gauge_half_window);
     json out = json::object();
     for (const auto &[key, v] : longest) {
         json d = disorder_of(v).to_json();

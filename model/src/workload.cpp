@@ -585,4 +585,26 @@ std::optional<ColumnDisorder> column_disorder_of(const std::vector<SphRun> &runs
     return d;
 }
 
+// The runs with each interval's times divided by its speed gauge over the run's whole (the
+// median over +-half_window intervals, SphRun::interval_gauges_s): the run's
+// level stays, a spell within it goes. The cost line over the memory order is fitted within
+// runs (one level per run) on the one long run that spans the order, and a spell of a slow
+// host inside it (gauge 1.3-1.45 times the run's for a few intervals) flattened the line to
+// R^2 0.002 in a session 91 job, which then predicted every slab at the whole water's order
+// (model/NOTES.md, session 91). Runs without gauge samples stay as they are.
+std::vector<SphRun> within_run_speed(std::vector<SphRun> runs, int half_window) {
+    for (auto &r : runs) {
+        const double whole = r.gauge_per_sample_s();
+        const auto around = r.interval_gauges_s(half_window);
+        if (!(whole > 0) || around.size() != r.intervals.size() ||
+            std::any_of(around.begin(), around.end(), [](double g) { return !(g > 0); }))
+            continue;
+        std::vector<double> inverse;
+        for (double g : around)
+            inverse.push_back(whole / g);
+        r.scale_times(inverse);
+    }
+    return runs;
+}
+
 } // namespace sphperf::model

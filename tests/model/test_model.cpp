@@ -557,6 +557,38 @@ SphRun two_rank_column_run(const std::string &path, Columns column_descents, Ord
 }
 } // namespace
 
+// A slow spell of the host inside the one long run (intervals 5 and 6 at 1.4 times the time,
+// the speed gauge reading it) bends the cost line fitted within the run; each interval's times
+// over its gauge against the run's whole (within_run_speed) recover the planted line's shape.
+TEST(Workload, WithinRunSpeedTakesASlowSpellOutOfTheCostLine) {
+    constexpr double a = 30e-9, b = 50e-9, spell = 1.4;
+    auto descents = [](int k) {
+        return std::vector<double>{50.0 + 10 * k, 60.0 + 5 * k, 100.0 + 20 * k, 200.0 + 40 * k};
+    };
+    SphRun r = two_rank_column_run("spell", descents, descents, [&](int k, double D) {
+        return k >= 4 ? (k == 5 || k == 6 ? spell : 1.0) * (a + b * D) : 3 * a;
+    });
+    for (std::size_t k = 0; k < r.intervals.size(); ++k)
+        for (auto &rk : r.intervals[k].ranks) {
+            rk.gauge_samples = 10;
+            rk.gauge_cpu_s = 10 * 30e-6 * (k == 4 || k == 5 ? spell : 1.0);
+        }
+    const auto bent = column_disorder_of({r});
+    ASSERT_TRUE(bent.has_value());
+    EXPECT_GT(std::abs(bent->slope_s / bent->intercept_s / (b / a) - 1), 0.1);
+    const auto fixed = column_disorder_of(within_run_speed({r}, 1));
+    ASSERT_TRUE(fixed.has_value());
+    EXPECT_NEAR(fixed->slope_s / fixed->intercept_s, b / a, 1e-6 * b / a);
+    // Without gauge samples the runs stay as they are.
+    SphRun bare = r;
+    for (auto &iv : bare.intervals)
+        for (auto &rk : iv.ranks)
+            rk.gauge_samples = rk.gauge_cpu_s = 0;
+    const auto kept = within_run_speed({bare}, 1);
+    EXPECT_EQ(kept.front().intervals[4].ranks[0].compute_s(),
+              bare.intervals[4].ranks[0].compute_s());
+}
+
 TEST(Workload, ColumnDisorderRecoversTheCostLineAndGivesEachSlabItsColumns) {
     // Two rounds (host levels 1 and 1.2) of a 2-rank run over 8 records, 4 columns of 1000
     // interactions each; rank 0 holds columns 0-1, rank 1 columns 2-3. In the later half a

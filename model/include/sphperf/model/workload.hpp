@@ -174,5 +174,10 @@ struct ColumnDisorder {
 // Cell+Table's own).
 std::optional<ColumnDisorder> column_disorder_of(const std::vector<SphRun> &runs,
                                                  const std::vector<SphRun> &order_runs = {});
+// The runs with each interval's times divided by its speed gauge (the median over
+// +-half_window intervals) over the run's whole: the run's level stays, a spell of a faster or
+// slower host within it goes. For the cost line above, fitted within runs. Runs without gauge
+// samples stay as they are.
+std::vector<SphRun> within_run_speed(std::vector<SphRun> runs, int half_window);
 
 } // namespace sphperf::model
