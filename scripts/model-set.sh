@@ -10,8 +10,8 @@
 # dam breaks at 0.5 (c5_steps) cover the validation's simulated time, 0.1 s (1000 steps of
 # 0.1 ms; 1500 in session 59, 0.106 s in sessions 55-58): Cell+Table's memory order follows
 # simulated time, and predict carries each slab's to the whole water's there
-# (--memory-order-time simulated, sessions 59-89; the model reads it at Froude time since session
-# 90, and the comparison simulated-order/ needs the record). The models reported beside it may
+# (--memory-order-time simulated, sessions 59-89; the model reads each slab's columns at
+# simulated time since session 91, which needs the record as far, as does simulated-order/). The models reported beside it may
 # select the memory-order term, which needs the same; a prediction they cannot make from these
 # runs is listed as such. The scale-1 dam breaks run 1000 steps since session 60 (1500 before):
 # on the Zen 3 host of session 60 the job took 10:47-11:33 with 1500 and 9:00-9:56 with 1200,

@@ -12,14 +12,16 @@
 # calibration's cost: the run time of the calibration runs kept over that of the validation runs
 # (the reports' wall_s, without the launcher's start-up). Nothing is timed: runs beside anything.
 # Environment: CAL_EXTRA, more calibrate options; PREDICT_EXTRA, more predict options (the
-# model reads the memory order at Froude time since session 90, which any stored job's record
-# reaches; PREDICT_EXTRA="--memory-order-time simulated" is sessions 59-89's); REPLAY_RULE, the
-# compute-cost term rule (calibrate --term-selection; default the main job's, levelled-best).
+# model reads each slab's memory order from its columns at simulated time since session 91;
+# PREDICT_EXTRA="--memory-order-time froude" is session 90's, "--memory-order-time simulated"
+# sessions 59-89's; CAL_EXTRA="--order-line-gauge run" fits the order's cost line as sessions
+# 56-90 did); REPLAY_RULE, the compute-cost term rule (calibrate --term-selection; default
+# the main job's, levelled-best).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build="${SPHPERF_BUILD_DIR:-$root/build}"
 stage() { echo "== $*"; }
-usage() { sed -n '2,17p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+usage() { sed -n '2,19p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
 die() { echo "replay-job.sh: $*" >&2; exit 2; }
 runs="" machine="" commit="" host=vm out="" exclude="" include="" quick=0
 while [ $# -gt 0 ]; do
