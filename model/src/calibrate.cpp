@@ -654,8 +654,10 @@ json disorder_by_setup(const std::vector<SphRun> &runs, bool interval_gauge) {
         // Per column too (reports since session 56): predict gives each rank the memory order
         // of its own columns.
         const std::string method =
-            "interactions and descents per cell column, mean of the runs, carried to the "
-            "target by Froude time; compute per interaction = intercept + slope x descents "
+            "interactions and descents per cell column, mean of the runs, read by predict at "
+            "the target's simulated time (--memory-order-time columns) or Froude time, the "
+            "columns at their relative place; compute per interaction = intercept + slope x "
+            "descents "
             "per interaction, fitted (one level per run) on the rank-intervals holding at "
             "least a tenth of the interactions in the later half of each run" +
             std::string(interval_gauge ? " (each interval's times over its speed gauge "
