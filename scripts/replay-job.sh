@@ -1,13 +1,17 @@
 #!/usr/bin/env bash
-# A main job's measured runs calibrated again, with some calibration runs left out: what a
+# A main job's measured runs calibrated again, some calibration runs left out or shortened: what a
 # cheaper calibration would have predicted for the same validation runs, and what it costs.
 #   scripts/replay-job.sh (--runs DIR --machine MACHINE.json | --commit REV [--host H])
-#       --out DIR [--exclude REGEX] [--include REGEX] [--quick]
+#       --out DIR [--exclude REGEX] [--include REGEX] [--shorten REGEX=F]... [--quick]
 # --runs: a job's runs (DIR/cal_*.json and DIR/val_*.json, as scripts/model-node.sh writes
 # them); --commit: the job stored in results/reference/H/ (default vm) at git revision REV.
 # --exclude / --include: extended regular expressions on the calibration reports' paths (the
 # model's calibration runs are cal_*.json; round a's end in _a.json, b's in _b.json, Cell+Sorted's
-# round c in _c.json). --quick: the runs are a --quick job's (its validation lengths).
+# round c in _c.json). --shorten REGEX=F (repeatable; the first matching rule wins): the kept
+# calibration reports whose path matches REGEX cut to their first F (0 < F <= 1) of intervals,
+# what a shorter calibration run would have reported (scripts/shorten-report.py: the same
+# physics, wall_s scaled by the kept share of the run's timers), written to DIR/shortened/.
+# --quick: the runs are a --quick job's (its validation lengths).
 # Writes DIR/{model,prediction_*,validation}.json (sphmodel's), prints validate's table and the
 # calibration's cost: the run time of the calibration runs kept over that of the validation runs
 # (the reports' wall_s, without the launcher's start-up). Nothing is timed: runs beside anything.
@@ -21,9 +25,10 @@ set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build="${SPHPERF_BUILD_DIR:-$root/build}"
 stage() { echo "== $*"; }
-usage() { sed -n '2,19p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+usage() { sed -n '2,23p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
 die() { echo "replay-job.sh: $*" >&2; exit 2; }
 runs="" machine="" commit="" host=vm out="" exclude="" include="" quick=0
+shorten=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --runs | --machine | --commit | --host | --out | --exclude | --include)
@@ -33,6 +38,11 @@ while [ $# -gt 0 ]; do
                 --runs) runs=$v ;; --machine) machine=$v ;; --commit) commit=$v ;;
                 --host) host=$v ;; --out) out=$v ;; --exclude) exclude=$v ;; --include) include=$v ;;
             esac
+            shift 2 ;;
+        --shorten)
+            [ $# -ge 2 ] || die "--shorten needs REGEX=FRACTION (see --help)"
+            [[ "$2" == *=* ]] || die "--shorten '$2': expected REGEX=FRACTION, e.g. '_b\\.json\$=0.5'"
+            shorten+=("$2")
             shift 2 ;;
         --quick) quick=1; shift ;;
         -h | --help) usage 0 ;;
@@ -55,7 +65,12 @@ if [ -n "$commit" ]; then
 fi
 [ -n "$runs" ] && [ -n "$machine" ] || die "give --runs DIR and --machine FILE, or --commit REV"
 [ -f "$machine" ] || die "--machine '$machine': no such file"
-for re in "$exclude" "$include"; do
+for rule in "${shorten[@]}"; do
+    f=${rule##*=}
+    /usr/bin/python3 -c 'import sys; f = float(sys.argv[1]); sys.exit(0 if 0 < f <= 1 else 1)' \
+        "$f" 2>/dev/null || die "--shorten '$rule': fraction '$f' is not a number in 0 < F <= 1"
+done
+for re in "$exclude" "$include" "${shorten[@]%=*}"; do
     [ -n "$re" ] || continue
     rc=0
     grep -E -q -- "$re" <<<"" 2>/dev/null || rc=$?
@@ -80,6 +95,22 @@ mapfile -t cal_reports < <(model_runs 2>/dev/null |
     { [ -n "$exclude" ] && grep -v -E -- "$exclude" || cat; })
 val_reports=("$runs"/val_*.json)
 [ "${#val_reports[@]}" -gt 0 ] || die "--runs '$runs': no validation reports (val_*.json)"
+if [ "${#shorten[@]}" -gt 0 ]; then
+    short_dir="$out/shortened"
+    rm -rf "$short_dir"
+    mkdir -p "$short_dir"
+    for i in "${!cal_reports[@]}"; do
+        for rule in "${shorten[@]}"; do
+            if grep -E -q -- "${rule%=*}" <<<"${cal_reports[$i]}"; then
+                dest="$short_dir/$(basename "${cal_reports[$i]}")"
+                /usr/bin/python3 "$root/scripts/shorten-report.py" --fraction "${rule##*=}" \
+                    "${cal_reports[$i]}" "$dest" || exit 2
+                cal_reports[$i]=$dest
+                break
+            fi
+        done
+    done
+fi
 [ "${#cal_reports[@]}" -gt 0 ] || die "no calibration report (cal_*.json in '$runs') is left" \
     "after --include '$include' and --exclude '$exclude'"
 # PREDICT_EXTRA: more predict options (e.g. --memory-order-time froude for a job whose list

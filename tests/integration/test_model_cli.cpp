@@ -2119,6 +2119,94 @@ TEST(ModelCli, ReplayJobCalibratesOnTheRunsItKeeps) {
     }
 }
 
+// scripts/replay-job.sh --shorten: the calibration reports it names are cut to their first
+// intervals (scripts/shorten-report.py), exactly the kept intervals of the original, config.steps
+// the last kept one's, wall_s the kept share of the longest rank's timers; the model calibrates
+// on the shortened copies and the cost line sums their wall_s. A bad fraction or a report of
+// another kind exits 2 with one line and writes nothing.
+TEST(ModelCli, ReplayJobShortensTheRunsItIsTold) {
+    const fs::path dir = scratch("replay_shorten");
+    const fs::path runs = reference_vm + "runs";
+    const std::string script =
+        "SPHPERF_BUILD_DIR=" + fs::path(SPHPERF_BIN_DIR).parent_path().string() + " bash " +
+        std::string(SPHPERF_SCRIPTS_DIR) + "/replay-job.sh --runs " + runs.string() +
+        " --machine " + reference_vm + "machine.json";
+    const fs::path out = dir / "half_b";
+    const sphperf::testing::Run r =
+        run(script + " --shorten '_b\\.json$=0.5' --out " + out.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    std::set<std::string> round_b, shortened;
+    for (const auto &e : fs::directory_iterator(runs)) {
+        const std::string name = e.path().filename().string();
+        if (name.rfind("cal_", 0) == 0 && name.size() > 7 &&
+            name.compare(name.size() - 7, 7, "_b.json") == 0)
+            round_b.insert(name);
+    }
+    ASSERT_GE(round_b.size(), 10u);
+    for (const auto &e : fs::directory_iterator(out / "shortened"))
+        shortened.insert(e.path().filename().string());
+    EXPECT_EQ(shortened, round_b);
+    for (const auto &name : round_b) {
+        const auto whole = load(runs / name);
+        const auto cut = load(out / "shortened" / name);
+        const auto &ivs = whole["intervals"];
+        const std::size_t keep = cut["intervals"].size();
+        ASSERT_GE(keep, 1u) << name;
+        EXPECT_LE(std::abs(static_cast<double>(keep) - 0.5 * static_cast<double>(ivs.size())), 0.5)
+            << name;
+        EXPECT_EQ(cut["intervals"], nlohmann::json(std::vector<nlohmann::json>(
+                                        ivs.begin(), ivs.begin() + static_cast<long>(keep))))
+            << name;
+        EXPECT_EQ(cut["config"]["steps"], ivs[keep - 1]["step"]) << name;
+        auto longest = [](const nlohmann::json &iv) {
+            double most = 0;
+            for (const auto &rk : iv["ranks"]) {
+                double t = 0;
+                for (const auto &[k, v] : rk["timers"].items())
+                    t += v.get<double>();
+                most = std::max(most, t);
+            }
+            return most;
+        };
+        double total = 0, kept = 0;
+        for (std::size_t i = 0; i < ivs.size(); ++i)
+            (i < keep ? kept : total) += longest(ivs[i]);
+        total += kept;
+        EXPECT_NEAR(cut["wall_s"].get<double>(), whole["wall_s"].get<double>() * kept / total,
+                    1e-12)
+            << name;
+        EXPECT_EQ(cut["shortened"]["from_steps"], whole["config"]["steps"]) << name;
+    }
+    std::size_t from_shortened = 0;
+    const auto model = load(out / "model.json");
+    for (const auto &c : model["calibration_runs"])
+        if (c["path"].get<std::string>().find("/shortened/") != std::string::npos)
+            ++from_shortened;
+    EXPECT_EQ(from_shortened, round_b.size());
+
+    const fs::path bad = dir / "bad";
+    for (const auto &[args, expect] : std::vector<std::pair<std::string, std::string>>{
+             {"--shorten '_b=0'", "fraction '0' is not a number in 0 < F <= 1"},
+             {"--shorten '_b=half'", "fraction 'half' is not a number"},
+             {"--shorten '_b'", "expected REGEX=FRACTION"},
+             {"--shorten '(=0.5'", "not an extended regular expression"}}) {
+        const sphperf::testing::Run b = run(script + " " + args + " --out " + bad.string());
+        EXPECT_EQ(b.code, 2) << args << b.err;
+        EXPECT_EQ(b.err_lines(), 1) << b.err;
+        EXPECT_NE(b.err.find(expect), std::string::npos) << b.err;
+        EXPECT_FALSE(fs::exists(bad));
+    }
+    const std::string shorten =
+        "/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) + "/shorten-report.py ";
+    const fs::path none = dir / "none.json";
+    const sphperf::testing::Run other =
+        run(shorten + "--fraction 0.5 " + reference_vm + "machine.json " + none.string());
+    EXPECT_EQ(other.code, 2) << other.err;
+    EXPECT_EQ(other.err_lines(), 1) << other.err;
+    EXPECT_NE(other.err.find("expected an sph report"), std::string::npos) << other.err;
+    EXPECT_FALSE(fs::exists(none));
+}
+
 // scripts/gauge-drift.py recovers a planted drift of the host's speed within runs (the gauge 5 %
 // lower from 2 s into every run, whatever the run's own level) and a planted dependence between
 // runs (each run's level 40 us x wall^-0.1), each without reading it as the other; bad input
