@@ -89,8 +89,14 @@ def shorten(report, frac):
     return report
 
 
+class Parser(argparse.ArgumentParser):
+    # One line on bad options, as every sphperf tool: argparse would print its usage first.
+    def error(self, message):
+        fail(message)
+
+
 def main():
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = Parser(description=__doc__.split("\n\n")[0])
     p.add_argument("--fraction", type=fraction, required=True,
                    help="share of the run's intervals to keep, 0 < F <= 1 (no default)")
     p.add_argument("input", help="an sph report (sph --report)")

@@ -2205,6 +2205,13 @@ TEST(ModelCli, ReplayJobShortensTheRunsItIsTold) {
     EXPECT_EQ(other.err_lines(), 1) << other.err;
     EXPECT_NE(other.err.find("expected an sph report"), std::string::npos) << other.err;
     EXPECT_FALSE(fs::exists(none));
+    // A fraction outside (0, 1]: one line naming it, not argparse's usage first.
+    const sphperf::testing::Run wide =
+        run(shorten + "--fraction 1.5 " + reference_vm + "machine.json " + none.string());
+    EXPECT_EQ(wide.code, 2) << wide.err;
+    EXPECT_EQ(wide.err_lines(), 1) << wide.err;
+    EXPECT_NE(wide.err.find("1.5 is outside 0 < F <= 1"), std::string::npos) << wide.err;
+    EXPECT_FALSE(fs::exists(none));
 }
 
 // scripts/gauge-drift.py recovers a planted drift of the host's speed within runs (the gauge 5 %
