@@ -533,6 +533,9 @@ beside model_and_validate "$out/froude-order" "$rule" froude relative replay \
 # simulated time (sessions 59-89, half of the cost's carry since session 73).
 beside model_and_validate "$out/simulated-order" "$rule" froude relative replay \
     "--memory-order-time simulated"
+# The memory order's cost line refused where the interval gauge's fit is unusable (sessions
+# 91-92) instead of fitted again on the kernel-gauged times (session 93).
+CAL_EXTRA="--order-line-gauge interval" beside model_and_validate "$out/interval-order-line" "$rule" froude
 # The same with the cost following all of the order's carry to simulated time (sessions 59-72).
 beside model_and_validate "$out/full-carry" "$rule" froude relative replay \
     "--memory-order-time simulated --memory-order-carry 1"

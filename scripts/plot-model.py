@@ -1021,6 +1021,24 @@ def markdown(model, validation, args, out):
              "+1.2 % with it; both targets met in 14 of the 22 jobs against 12): **tuned**. With "
              "the order at Froude time (sessions 56-58) on the same runs: {o} "
              "(froude-order/validation.json)."),
+            ("gauge" in ((model.get("disorder") or {}).get("dambreak", {}).get("table", {})
+                         .get("by_column") or {}),
+             "interval-order-line",
+             "Cell+Table's memory-order cost line fitted again on each rank-interval's times over "
+             "its own kernel's time per interaction (calibrate --order-line-gauge "
+             "interval-or-kernel), since session 93, where the line on the interval gauge's "
+             "times is unusable (its slope within two standard errors), as in this job: the "
+             "kernel runs on the same core over the same particles, so it gauges the host's "
+             "speed in every rank-interval, where a noisy spell flattened the one long run's "
+             "line in three of session 93's four blind jobs, which then priced every slab at the "
+             "whole water's order. It takes out the kernel's own small rise with the order too "
+             "(the slope 35 % lower than the interval gauge's on session 91's stored job). "
+             "Replayed on those three jobs' runs: the 4-rank scale-2 table dam break at each "
+             "run's own speed +6.8 / +6.3 / +15.6 -> +2.2 / +2.2 / +13.3 %, the scale-1 one +0.7 "
+             "/ -0.5 / +10.4 -> -3.6 / -4.5 / +8.2 %, the jobs' max as measured 13.2 / 19.7 / "
+             "18.8 -> 13.2 / 21.8 / 17.7 %: **tuned** (model/NOTES.md, session 93). With the "
+             "line refused (sessions 91-92) on the same runs: {o} "
+             "(interval-order-line/validation.json)."),
             (any(c.get("item_cost_bound") == "particle" for c in model["compute"]),
              "unbounded-items",
              "Term sets that price one item (a particle, a ghost, a cell move, a wall) above a fluid "

@@ -19,7 +19,7 @@
 # model reads each slab's memory order from its columns at simulated time since session 91;
 # PREDICT_EXTRA="--memory-order-time froude" is session 90's, "--memory-order-time simulated"
 # sessions 59-89's; CAL_EXTRA="--order-line-gauge run" fits the order's cost line as sessions
-# 56-90 did); REPLAY_RULE, the compute-cost term rule (calibrate --term-selection; default
+# 56-90 did, "--order-line-gauge interval" as sessions 91-92 did); REPLAY_RULE, the compute-cost term rule (calibrate --term-selection; default
 # the main job's, levelled-best).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

@@ -618,7 +618,7 @@ json cell_move_fit(const std::vector<Point> &pts) {
 // Per setup and grid (each grid visits candidates in its own order), the memory-order decay of
 // the stored-list runs reaching furthest in simulated time (the mean of those with the same
 // record times: rounds of the same configuration).
-json disorder_by_setup(const std::vector<SphRun> &runs, bool interval_gauge) {
+json disorder_by_setup(const std::vector<SphRun> &runs, OrderLineGauge gauge) {
     std::map<std::pair<std::string, std::string>, std::vector<SphRun>> longest;
     auto end_of = [](const SphRun &r) { return r.intervals.back().time_s; };
     // Runs of one configuration on two grids: the same scale, spacing, ranks, slabs, columns
@@ -642,9 +642,37 @@ json disorder_by_setup(const std::vector<SphRun> &runs, bool interval_gauge) {
                           r.config.delta == v.front().config.delta))
             v.push_back(r);
     }
-    if (interval_gauge)
-        for (auto &[key, v] : longest)
-            v = within_run_speed(std::move(v), speed_gauge_half_window);
+    // The runs as the line is first fitted, and as it is fitted again where that line is
+    // unusable (interval-or-kernel: a noisy spell flattened round a's one long Cell+Table run
+    // in three of session 93's four blind jobs).
+    const bool by_interval =
+        gauge == OrderLineGauge::interval || gauge == OrderLineGauge::interval_or_kernel;
+    auto first_gauged = [&](const std::vector<SphRun> &v) {
+        return by_interval                       ? within_run_speed(v, speed_gauge_half_window)
+               : gauge == OrderLineGauge::kernel ? within_run_kernel_speed(v)
+                                                 : v;
+    };
+    const bool kernel_fallback = gauge == OrderLineGauge::interval_or_kernel;
+    const std::map<std::pair<std::string, std::string>, std::vector<SphRun>> raw = longest;
+    for (auto &[key, v] : longest)
+        v = first_gauged(v);
+    // The line of `v` (times as first gauged; `v_raw` as measured) with `order` standing for
+    // its descents where given, refitted on the kernel-gauged times where it is unusable.
+    auto line_of = [&](const std::vector<SphRun> &v, const std::vector<SphRun> &v_raw,
+                       const std::vector<SphRun> &order) {
+        std::optional<ColumnDisorder> line = column_disorder_of(v, order);
+        if (kernel_fallback && (!line || !line->unusable().empty())) {
+            std::optional<ColumnDisorder> again =
+                column_disorder_of(within_run_kernel_speed(v_raw), order);
+            if (again && again->unusable().empty()) {
+                again->gauge_note = "the interval gauge's line was unusable (" +
+                                    (line ? line->unusable() : std::string("no line")) +
+                                    "): fitted on the kernel-gauged times";
+                return again;
+            }
+        }
+        return line;
+    };
     json out = json::object();
     for (const auto &[key, v] : longest) {
         json d = disorder_of(v).to_json();
@@ -660,10 +688,14 @@ json disorder_by_setup(const std::vector<SphRun> &runs, bool interval_gauge) {
             "descents "
             "per interaction, fitted (one level per run) on the rank-intervals holding at "
             "least a tenth of the interactions in the later half of each run" +
-            std::string(interval_gauge ? " (each interval's times over its speed gauge "
-                                         "against the run's whole, calibrate --order-line-gauge "
-                                         "interval)"
-                                       : "") +
+            std::string(by_interval ? " (each interval's times over its speed gauge "
+                                      "against the run's whole, calibrate --order-line-gauge "
+                                      "interval)"
+                        : gauge == OrderLineGauge::kernel
+                            ? " (each rank-interval's times over its kernel's time per "
+                              "interaction against the run's median, calibrate "
+                              "--order-line-gauge kernel)"
+                            : "") +
             "; predict "
             "multiplies each rank's compute by (intercept + slope D_rank) / (intercept + "
             "slope D_all), D of the rank's columns and of all of them";
@@ -678,13 +710,13 @@ json disorder_by_setup(const std::vector<SphRun> &runs, bool interval_gauge) {
             return why_not.empty();
         };
         bool usable = false;
-        if (const auto by_column = column_disorder_of(v))
+        if (const auto by_column = line_of(v, raw.at(key), {}))
             usable = keep(*by_column, "by_column", "by_column_unused", method);
         // Cell+List's descents do not see its memory order; Cell+Table's runs of the same
         // configuration (the same particles, the same migrations) do (workload.hpp), where
         // their own cost line is usable (not a still tank's, whose order barely moves).
         auto table_line_usable = [&](const std::vector<SphRun> &t) {
-            const auto own = column_disorder_of(t);
+            const auto own = line_of(t, raw.at({key.first, "table"}), {});
             return own && own->unusable().empty();
         };
         if (const auto table = longest.find({key.first, "table"});
@@ -692,7 +724,7 @@ json disorder_by_setup(const std::vector<SphRun> &runs, bool interval_gauge) {
             same_record(v.front(), table->second.front()) && table_line_usable(table->second)) {
             std::optional<ColumnDisorder> by_table;
             try {
-                by_table = column_disorder_of(v, table->second);
+                by_table = line_of(v, raw.at(key), table->second);
             } catch (const std::invalid_argument &) {
                 // Record times that differ inside the run: no line read across them.
             }
@@ -1981,8 +2013,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     model["roofline"] = roofline(machine, measured); // the runs' own speed
     model["memory"] = memory_model(runs);
     model["traces"] = traces;
-    model["disorder"] =
-        disorder_by_setup(own_cores, opt.order_line_gauge == OrderLineGauge::interval);
+    model["disorder"] = disorder_by_setup(own_cores, opt.order_line_gauge);
     return model;
 }
 

@@ -25,7 +25,7 @@ struct Options {
     std::string speed_gauge = "run";
     std::string gauge_reference = "pooled";
     std::string gauge_elasticity = "one";
-    std::string order_line_gauge = "interval";
+    std::string order_line_gauge = "interval-or-kernel";
     bool walls_term = false;
     std::string jitter_form = "auto";
     std::string item_cost_bound = "particle";
@@ -110,10 +110,13 @@ int run(int argc, char **argv) {
     cal->add_option("--order-line-gauge", o.order_line_gauge,
                     "The memory order's cost line over times put at one speed within each run "
                     "by the speed gauge around every interval (interval: a slow spell inside "
-                    "the long run flattened it otherwise, model/NOTES.md session 91) or at the "
-                    "run's whole speed only, as the other fits (run: sessions 56-90)")
+                    "the long run flattened it otherwise, model/NOTES.md session 91), at the "
+                    "run's whole speed only, as the other fits (run: sessions 56-90), by each "
+                    "rank-interval's own kernel time per interaction (kernel), or by the "
+                    "interval gauge and, where that line is unusable, the kernel "
+                    "(interval-or-kernel, session 93)")
         ->capture_default_str()
-        ->check(cli::IsMember({"interval", "run"}));
+        ->check(cli::IsMember({"interval", "run", "kernel", "interval-or-kernel"}));
     cal->add_flag("--walls-term", o.walls_term,
                   "Also offer the compute-cost term walls (every wall particle of a rank), as "
                   "sessions 1-50 did (a rank's dry walls cost nothing measurable: model/NOTES.md, "
@@ -302,7 +305,10 @@ int run(int argc, char **argv) {
                                                 : SpeedGauge::off,
              o.gauge_reference == "pooled" ? GaugeReference::pooled : GaugeReference::grid,
              o.gauge_elasticity == "one" ? GaugeElasticity::one : GaugeElasticity::fitted,
-             o.order_line_gauge == "run" ? OrderLineGauge::run : OrderLineGauge::interval,
+             o.order_line_gauge == "run"                  ? OrderLineGauge::run
+             : o.order_line_gauge == "kernel"             ? OrderLineGauge::kernel
+             : o.order_line_gauge == "interval-or-kernel" ? OrderLineGauge::interval_or_kernel
+                                                          : OrderLineGauge::interval,
              o.walls_term,
              o.jitter_form == "auto"   ? std::nullopt
              : o.jitter_form == "sqrt" ? std::optional<JitterForm>(JitterForm::sqrt)

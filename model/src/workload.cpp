@@ -5,6 +5,7 @@
 #include "sphperf/sph/config.hpp"
 #include "sphperf/sph/domain.hpp"
 #include "sphperf/sph/setup.hpp"
+#include "sphperf/stats.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -445,6 +446,8 @@ nlohmann::json ColumnDisorder::to_json() const {
                        {"points", points}}}};
     if (!order_source.empty())
         j["descents_from"] = order_source;
+    if (!gauge_note.empty())
+        j["gauge"] = gauge_note;
     return j;
 }
 
@@ -453,6 +456,7 @@ ColumnDisorder ColumnDisorder::from_json(const nlohmann::json &j, const std::str
     try {
         d.source = j.value("source", "");
         d.order_source = j.value("descents_from", "");
+        d.gauge_note = j.value("gauge", "");
         d.scale = j.at("scale").get<double>();
         d.cell_size = j.at("cell_size").get<double>();
         d.tank_length = j.at("tank_length").get<double>();
@@ -603,6 +607,28 @@ std::vector<SphRun> within_run_speed(std::vector<SphRun> runs, int half_window) 
         for (double g : around)
             inverse.push_back(whole / g);
         r.scale_times(inverse);
+    }
+    return runs;
+}
+
+std::vector<SphRun> within_run_kernel_speed(std::vector<SphRun> runs) {
+    auto kernel_per_interaction = [](const RankStats &rk) {
+        const double n = rk.steps * rk.interactions;
+        return n > 0 ? rk.timer("comp_s") / n : 0.0;
+    };
+    for (auto &r : runs) {
+        std::vector<double> k;
+        for (const auto &iv : r.intervals)
+            for (const auto &rk : iv.ranks)
+                if (const double c = kernel_per_interaction(rk); c > 0)
+                    k.push_back(c);
+        if (k.empty())
+            continue;
+        const double level = median(k);
+        for (auto &iv : r.intervals)
+            for (auto &rk : iv.ranks)
+                if (const double c = kernel_per_interaction(rk); c > 0)
+                    rk.scale_times(level / c);
     }
     return runs;
 }

@@ -589,6 +589,43 @@ TEST(Workload, WithinRunSpeedTakesASlowSpellOutOfTheCostLine) {
               bare.intervals[4].ranks[0].compute_s());
 }
 
+// A host that speeds up through the one long run (each interval 8 % faster than the one before)
+// tilts the cost line fitted within it, as the memory order rises with time too; the run carries
+// no gauge samples. Each rank-interval's times over its own kernel's time per interaction
+// (within_run_kernel_speed; the kernel, comp_s, planted flat in the order as the search,
+// pairs_s, is not) recover the planted line's shape, search plus kernel.
+TEST(Workload, WithinRunKernelSpeedTakesAHostDriftOutOfTheCostLine) {
+    constexpr double a = 10e-9, b = 60e-9, kernel = 20e-9;
+    auto descents = [](int k) {
+        return std::vector<double>{50.0 + 10 * k, 60.0 + 5 * k, 100.0 + 20 * k, 200.0 + 40 * k};
+    };
+    auto host = [](int k) { return std::pow(0.92, k); };
+    SphRun r = two_rank_column_run("drift", descents, descents,
+                                   [&](int k, double) { return host(k) * kernel; });
+    for (std::size_t k = 0; k < r.intervals.size(); ++k)
+        for (auto &rk : r.intervals[k].ranks) {
+            const double n = rk.steps * rk.interactions;
+            rk.timers["pairs_s"] =
+                host(static_cast<int>(k) + 1) * (a + b * rk.descents / rk.interactions) * n;
+        }
+    const auto tilted = column_disorder_of({r});
+    ASSERT_TRUE(tilted.has_value());
+    const double shape = b / (a + kernel);
+    EXPECT_LT(tilted->slope_s / tilted->intercept_s, 0.8 * shape);
+    const auto fixed = column_disorder_of(within_run_kernel_speed({r}));
+    ASSERT_TRUE(fixed.has_value());
+    EXPECT_NEAR(fixed->slope_s / fixed->intercept_s, shape, 1e-6 * shape);
+    EXPECT_NEAR(fixed->r2, 1.0, 1e-9);
+    // A rank-interval without kernel time stays as it is.
+    SphRun bare = r;
+    bare.intervals[4].ranks[0].timers.erase("comp_s");
+    const auto kept = within_run_kernel_speed({bare});
+    EXPECT_EQ(kept.front().intervals[4].ranks[0].compute_s(),
+              bare.intervals[4].ranks[0].compute_s());
+    EXPECT_NE(kept.front().intervals[4].ranks[1].compute_s(),
+              bare.intervals[4].ranks[1].compute_s());
+}
+
 TEST(Workload, ColumnDisorderRecoversTheCostLineAndGivesEachSlabItsColumns) {
     // Two rounds (host levels 1 and 1.2) of a 2-rank run over 8 records, 4 columns of 1000
     // interactions each; rank 0 holds columns 0-1, rank 1 columns 2-3. In the later half a

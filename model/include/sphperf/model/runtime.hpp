@@ -131,9 +131,10 @@ enum class GaugeReference { grid, pooled };
 // and Cell+Table) and 1.01 (Cell+Sorted) pooled over sixteen jobs (model/NOTES.md, session 74).
 enum class GaugeElasticity { fitted, one };
 // The memory order's cost line (ColumnDisorder) over times put at one speed within each run by
-// the speed gauge around every interval (interval, since session 91), or at the run's speed
-// alone as every other fit (run).
-enum class OrderLineGauge { interval, run };
+// the speed gauge around every interval (interval, sessions 91-92), or at the run's speed
+// alone as every other fit (run), or by each rank-interval's own kernel time per interaction
+// (kernel), or by the interval gauge and, where that line is unusable, the kernel (session 93).
+enum class OrderLineGauge { interval, run, kernel, interval_or_kernel };
 struct CalibrateOptions {
     bool allow_other_host = false;
     TermSelection term_selection = TermSelection::levelled_one_se;
@@ -145,7 +146,7 @@ struct CalibrateOptions {
     SpeedGauge speed_gauge = SpeedGauge::run;
     GaugeReference gauge_reference = GaugeReference::pooled;
     GaugeElasticity gauge_elasticity = GaugeElasticity::one;
-    OrderLineGauge order_line_gauge = OrderLineGauge::interval;
+    OrderLineGauge order_line_gauge = OrderLineGauge::interval_or_kernel;
     // Offer the cost term `walls` (every wall particle of a rank) to the term selection, as
     // sessions 1-50 did; session 51 measured that a rank's dry walls cost nothing (calibrate.cpp).
     bool walls_term = false;

@@ -127,6 +127,9 @@ struct ColumnDisorder {
     // (at the speed gauge's reference speed where the runs carry it).
     double intercept_s = 0, slope_s = 0, intercept_se_s = 0, slope_se_s = 0, r2 = 0;
     std::size_t points = 0;
+    // How the times were put at one speed where it was not the rule's first gauge (calibrate
+    // --order-line-gauge interval-or-kernel); empty otherwise.
+    std::string gauge_note;
 
     // Descents per interaction of every slab of `cuts` (none for a slab without interactions)
     // and of all the columns, the columns carried to the target (scale, cell size, tank
@@ -179,5 +182,12 @@ std::optional<ColumnDisorder> column_disorder_of(const std::vector<SphRun> &runs
 // slower host within it goes. For the cost line above, fitted within runs. Runs without gauge
 // samples stay as they are.
 std::vector<SphRun> within_run_speed(std::vector<SphRun> runs, int half_window);
+// The runs with each rank-interval's times divided by its own SPH kernel's time per interaction
+// (the `comp_s` timer over steps x interactions) over the run's median of it: the kernel runs
+// on the same core over the same particles and barely follows the memory order, so it gauges
+// the host's speed in that rank-interval where the gauge samples are too few. It also takes
+// out the kernel's own small rise with the order (about a quarter of the line's slope on a
+// quiet host, model/NOTES.md session 93). Rank-intervals without kernel time stay as they are.
+std::vector<SphRun> within_run_kernel_speed(std::vector<SphRun> runs);
 
 } // namespace sphperf::model
