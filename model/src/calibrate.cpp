@@ -17,6 +17,7 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <string_view>
 #include <tuple>
 
 namespace sphperf::model {
@@ -681,37 +682,43 @@ json disorder_by_setup(const std::vector<SphRun> &runs, OrderLineGauge gauge) {
                       "spacing), not at its Froude time";
         // Per column too (reports since session 56): predict gives each rank the memory order
         // of its own columns.
-        const std::string method =
-            "interactions and descents per cell column, mean of the runs, read by predict at "
-            "the target's simulated time (--memory-order-time columns) or Froude time, the "
-            "columns at their relative place; compute per interaction = intercept + slope x "
-            "descents "
-            "per interaction, fitted (one level per run) on the rank-intervals holding at "
-            "least a tenth of the interactions in the later half of each run" +
-            std::string(by_interval ? " (each interval's times over its speed gauge "
-                                      "against the run's whole, calibrate --order-line-gauge "
-                                      "interval)"
-                        : gauge == OrderLineGauge::kernel
-                            ? " (each rank-interval's times over its kernel's time per "
-                              "interaction against the run's median, calibrate "
-                              "--order-line-gauge kernel)"
-                            : "") +
-            "; predict "
-            "multiplies each rank's compute by (intercept + slope D_rank) / (intercept + "
-            "slope D_all), D of the rank's columns and of all of them";
+        constexpr std::string_view interval_gauge =
+            " (each interval's times over its speed gauge against the run's whole, calibrate "
+            "--order-line-gauge interval)";
+        constexpr std::string_view kernel_gauge =
+            " (each rank-interval's times over its kernel's time per interaction against the "
+            "run's median, calibrate --order-line-gauge kernel)";
+        // The method names the gauge the kept line was fitted on: a line the kernel fallback
+        // fitted again carries its note.
+        auto method_of = [&](const ColumnDisorder &c) {
+            const std::string_view how_gauged = !c.gauge_note.empty() ? kernel_gauge
+                                                : by_interval         ? interval_gauge
+                                                : gauge == OrderLineGauge::kernel
+                                                    ? kernel_gauge
+                                                    : std::string_view{};
+            return "interactions and descents per cell column, mean of the runs, read by "
+                   "predict at the target's simulated time (--memory-order-time columns) or "
+                   "Froude time, the columns at their relative place; compute per interaction "
+                   "= intercept + slope x descents per interaction, fitted (one level per run) "
+                   "on the rank-intervals holding at least a tenth of the interactions in the "
+                   "later half of each run" +
+                   std::string(how_gauged) +
+                   "; predict multiplies each rank's compute by (intercept + slope D_rank) / "
+                   "(intercept + slope D_all), D of the rank's columns and of all of them";
+        };
         auto keep = [&](const ColumnDisorder &c, const char *usable_key, const char *unused_key,
-                        const std::string &how) {
+                        std::string_view more) {
             const std::string why_not = c.unusable();
             const char *k = why_not.empty() ? usable_key : unused_key;
             d[k] = c.to_json();
             if (!why_not.empty())
                 d[k]["unused_because"] = why_not;
-            d[k]["method"] = how;
+            d[k]["method"] = method_of(c) + std::string(more);
             return why_not.empty();
         };
         bool usable = false;
         if (const auto by_column = line_of(v, raw.at(key), {}))
-            usable = keep(*by_column, "by_column", "by_column_unused", method);
+            usable = keep(*by_column, "by_column", "by_column_unused", "");
         // Cell+List's descents do not see its memory order; Cell+Table's runs of the same
         // configuration (the same particles, the same migrations) do (workload.hpp), where
         // their own cost line is usable (not a still tank's, whose order barely moves).
@@ -730,10 +737,10 @@ json disorder_by_setup(const std::vector<SphRun> &runs, OrderLineGauge gauge) {
             }
             if (by_table)
                 keep(*by_table, "by_column", "by_column_table_order_unused",
-                     method + "; the descents are Cell+Table's runs' (descents_from) in the "
-                              "same columns at the same times, read over each Cell+List rank's "
-                              "equal slab: Cell+List's own stay at 0.86 per interaction "
-                              "whatever its memory order");
+                     "; the descents are Cell+Table's runs' (descents_from) in the "
+                     "same columns at the same times, read over each Cell+List rank's "
+                     "equal slab: Cell+List's own stay at 0.86 per interaction "
+                     "whatever its memory order");
         }
         out[key.first][key.second] = d;
     }

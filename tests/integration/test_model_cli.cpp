@@ -2080,8 +2080,84 @@ TEST(ModelCli, ReplayJobCalibratesOnTheRunsItKeeps) {
             EXPECT_FALSE(list_order.contains("by_column")) << list_order.dump().substr(0, 400);
         }
         EXPECT_FALSE(m["disorder"]["still"]["list"].contains("by_column"));
+        // The method names the gauge the kept line was fitted on: the kernel's where the
+        // interval gauge's line was unusable and the fallback fitted it again (its `gauge`
+        // note), the interval's otherwise.
+        for (const char *grid : {"list", "table"})
+            for (const char *k : {"by_column", "by_column_unused"})
+                if (const auto &o = m["disorder"]["dambreak"][grid]; o.contains(k)) {
+                    const std::string method = o[k].value("method", "");
+                    const bool refitted = o[k].contains("gauge");
+                    EXPECT_NE(method.find(refitted ? "--order-line-gauge kernel"
+                                                   : "--order-line-gauge interval"),
+                              std::string::npos)
+                        << grid << " " << k << ": " << method;
+                    EXPECT_EQ(method.find(refitted ? "--order-line-gauge interval"
+                                                   : "--order-line-gauge kernel"),
+                              std::string::npos)
+                        << grid << " " << k << ": " << method;
+                }
     };
     check_list_order(model, "cal_dambreak_s0.5_table_a");
+    // A gauge asked for by name: its line's method names it, and no fallback note is written.
+    std::string round_a_list;
+    for (const auto &p : round_a)
+        round_a_list += " " + p.string();
+    for (const std::string gauge : {"interval", "kernel"}) {
+        const fs::path m = dir / ("round_a_" + gauge + ".json");
+        const sphperf::testing::Run c =
+            run(bin("sphmodel") + " calibrate --machine " + reference_vm +
+                "machine.json --order-line-gauge " + gauge + " --runs" + round_a_list + " --out " +
+                m.string());
+        ASSERT_EQ(c.code, 0) << gauge << ": " << c.err;
+        const auto calibrated = load(m);
+        const auto &table = calibrated["disorder"]["dambreak"]["table"];
+        const char *k = table.contains("by_column") ? "by_column" : "by_column_unused";
+        ASSERT_TRUE(table.contains(k)) << gauge;
+        EXPECT_NE(table[k]["method"].get<std::string>().find("--order-line-gauge " + gauge),
+                  std::string::npos)
+            << gauge;
+        EXPECT_FALSE(table[k].contains("gauge")) << gauge;
+    }
+    // The fallback itself: the long half-scale dam breaks cut short (fewer rank-intervals in
+    // the line, the interval gauge's fit no longer clear of flat) until the interval gauge's
+    // line is unusable and the kernel-gauged one is fitted in its place. Its note and method
+    // name the kernel's gauge (check_list_order).
+    bool fell_back = false;
+    for (const double fraction : {0.8, 0.7, 0.6, 0.5, 0.4}) {
+        std::string runs_cut;
+        for (const auto &p : round_a) {
+            const std::string name = p.filename().string();
+            if (name.find("_s0.5_table_") == std::string::npos &&
+                name.find("_s0.5_list_") == std::string::npos) {
+                runs_cut += " " + p.string();
+                continue;
+            }
+            const fs::path cut = dir / ("cut_" + std::to_string(fraction) + "_" + name);
+            ASSERT_EQ(run("/usr/bin/python3 " + std::string(SPHPERF_SCRIPTS_DIR) +
+                          "/shorten-report.py --fraction " + std::to_string(fraction) + " " +
+                          p.string() + " " + cut.string())
+                          .code,
+                      0);
+            runs_cut += " " + cut.string();
+        }
+        const fs::path m = dir / ("round_a_cut_" + std::to_string(fraction) + ".json");
+        const sphperf::testing::Run c =
+            run(bin("sphmodel") + " calibrate --machine " + reference_vm + "machine.json --runs" +
+                runs_cut + " --out " + m.string());
+        ASSERT_EQ(c.code, 0) << fraction << ": " << c.err;
+        const auto calibrated = load(m);
+        check_list_order(calibrated, "cut_");
+        const auto &table = calibrated["disorder"]["dambreak"]["table"];
+        if (table.contains("by_column") && table["by_column"].contains("gauge")) {
+            EXPECT_NE(table["by_column"]["gauge"].get<std::string>().find("kernel-gauged"),
+                      std::string::npos);
+            fell_back = true;
+            break;
+        }
+    }
+    EXPECT_TRUE(fell_back) << "no cut of the stored job's long dam breaks made the interval "
+                              "gauge's line unusable: the fallback went untested";
     const fs::path whole = dir / "all_rounds";
     const sphperf::testing::Run all = run(script + " --out " + whole.string());
     ASSERT_EQ(all.code, 0) << all.err;
