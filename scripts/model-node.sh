@@ -548,6 +548,10 @@ beside model_and_validate "$out/median-host-speed" "$rule" froude relative repla
 # out 10-16 % short; calibrate fits the slope over phi on its own time-shared runs).
 beside model_and_validate "$out/no-bubble" "$rule" froude relative replay \
     "--time-sharing-bubble off"
+# Every step without the wall time no phase timer holds (sessions 1-93) instead of with it
+# (session 94: calibrate's untimed_per_step, the run's own bookkeeping, 3-4 % of a half-scale
+# Cell+Sorted run's wall).
+beside model_and_validate "$out/no-untimed" "$rule" froude relative replay "--untimed off"
 # A candidate, not in use: each interval at the host's speed drift within a run at its time
 # since the run's start (calibrate's speed_gauge.run_drift, session 79: the gauge 2-4 % faster
 # after a run's first seconds on the Zen 4 host; replayed on 34 jobs the mean signed error +3.1

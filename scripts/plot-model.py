@@ -1158,6 +1158,18 @@ def markdown(model, validation, args, out):
              "4-rank table dam break came out -10 % over 22 blind jobs: **tuned** (k itself is "
              "fitted in each job). Without it (sessions 40-79) on the same runs: {o} "
              "(no-bubble/validation.json)."),
+            (bool((model.get("untimed_per_step") or {}).get("layouts")),
+             "no-untimed",
+             "Every step also pays the wall time no phase timer holds (predict --untimed on, "
+             "since session 94): the run's own bookkeeping between the timed phases, measured on "
+             "each calibration run as its wall_s less the slowest rank's timers, per step, the "
+             "median per ranks x threads (model.json untimed_per_step; 34-44 us a step on 2 "
+             "ranks and 5-7 on 1 in session 94's jobs, 3-4 % of a half-scale Cell+Sorted run). "
+             "Found by the model predicting its own calibration runs (in-sample/), not fitted "
+             "to validation runs; adopted after replaying 34 jobs (the short Cell+Sorted "
+             "configurations about a point higher, closer to their runs; the jobs' max -0.03 "
+             "points, standard error 0.10): **tuned** as a choice. Without it (sessions 1-93) on "
+             "the same runs: {o} (no-untimed/validation.json)."),
         ]
         not_compared = []
         for in_use, subdir, line in choices:

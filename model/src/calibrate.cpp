@@ -1409,6 +1409,73 @@ json gauge_elasticity_between_repeats(const std::vector<SphRun> &runs, int cores
                        "noise does not flatten the slope"}};
 }
 
+// The wall time no phase timer holds: a run's wall_s over its steps, less the slowest rank's
+// timers summed per interval (every step ends in an exchange, so the slowest rank sets it). It
+// is the run's own bookkeeping between the timed phases (each interval's record and gathers,
+// the progress line, the barrier at the end): measured at 34-44 us a step on 2 ranks and 5-7
+// on 1 in session 94's jobs, 3-4 % of a half-scale Cell+Sorted run's wall, which no cost term
+// sees (they are fitted on the timers). Per layout (ranks x threads), the median over the
+// calibration runs of that layout; predict adds it per step (model/NOTES.md, session 94).
+double untimed_s_per_step(const SphRun &r) {
+    double timed = 0, steps = 0;
+    for (const auto &iv : r.intervals) {
+        double slowest = 0;
+        for (const auto &rk : iv.ranks) {
+            double t = 0;
+            for (const auto &[key, v] : rk.timers)
+                t += v;
+            slowest = std::max(slowest, t);
+        }
+        timed += slowest;
+        if (!iv.ranks.empty())
+            steps += iv.ranks.front().steps;
+    }
+    return steps > 0 ? (r.wall_s - timed) / steps : 0.0;
+}
+
+json untimed_per_step(const std::vector<SphRun> &runs) {
+    std::map<std::pair<int, int>, std::vector<double>> by_layout;
+    for (const auto &r : runs)
+        by_layout[{r.config.ranks, r.config.threads}].push_back(untimed_s_per_step(r));
+    json layouts = json::array();
+    for (const auto &[layout, v] : by_layout) {
+        const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+        layouts.push_back({{"ranks", layout.first},
+                           {"threads", layout.second},
+                           {"runs", v.size()},
+                           {"median_s", median(v)},
+                           {"min_s", *lo},
+                           {"max_s", *hi}});
+    }
+    return {{"method", "per run: (wall_s - the slowest rank's phase timers summed per interval) / "
+                       "steps; per layout (ranks x threads) the median over the calibration "
+                       "runs; predict adds it to every step (a layout the calibration did not "
+                       "run: the nearest rank count's, at the same thread count if run)"},
+            {"layouts", layouts}};
+}
+
+double untimed_s_per_step_for(const json &model, int ranks, int threads) {
+    if (!model.contains("untimed_per_step"))
+        return 0.0;
+    const json *best = nullptr;
+    auto better = [&](const json &l) {
+        if (!best)
+            return true;
+        const bool same = l.at("threads").get<int>() == threads;
+        const bool best_same = best->at("threads").get<int>() == threads;
+        if (same != best_same)
+            return same;
+        const int d = std::abs(l.at("ranks").get<int>() - ranks);
+        const int best_d = std::abs(best->at("ranks").get<int>() - ranks);
+        return d < best_d ||
+               (d == best_d && l.at("ranks").get<int>() > best->at("ranks").get<int>());
+    };
+    for (const auto &l : model.at("untimed_per_step").at("layouts"))
+        if (better(l))
+            best = &l;
+    return best ? best->at("median_s").get<double>() : 0.0;
+}
+
 // The pipeline bubble of time-shared cores (session 80, model/NOTES.md): the step replay
 // (replay_time_shared) fed each interval's measured CPU per segment (sph cpu_before_s) gives
 // every time-shared validation run's step within 0.5-2.5 % where some core serves one busy rank
@@ -2011,6 +2078,7 @@ json calibrate(const json &header, const json &machine, const std::vector<SphRun
     }
     model["time_sharing"] = time_sharing(runs, compute, cores);
     model["time_sharing_bubble"] = sharing_bubble(runs, cores);
+    model["untimed_per_step"] = untimed_per_step(runs);
     if (json j = jitter(runs, compute, cores, opt.jitter_form); !j.is_null())
         model["jitter"] = j;
     json moves = json::object();

@@ -723,6 +723,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
     c.sharing_line = req.time_sharing_overhead == "line";
     c.sharing_replay = req.time_sharing_overhead == "replay";
     c.replay_slice_s = req.replay_slice_s;
+    if (req.untimed != "on" && req.untimed != "off")
+        throw UsageError("--untimed '" + req.untimed + "': expected on or off");
     if (req.time_sharing_bubble != "on" && req.time_sharing_bubble != "off")
         throw UsageError("--time-sharing-bubble '" + req.time_sharing_bubble +
                          "': expected on or off");
@@ -919,6 +921,9 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 peak_interactions(static_cast<std::size_t>(P), 0.0);
             double wall = 0, idle_onset_step = -1;
             double last_interval_s = 0, drift_compute = 0, drift_weight = 0, bubble_total = 0;
+            // The wall time no phase timer holds, per step (the run's own bookkeeping).
+            const double untimed_step =
+                req.untimed == "on" ? untimed_s_per_step_for(model, P, req.threads) : 0.0;
             for (std::int64_t s0 = 0; s0 < steps; s0 += req.interval) {
                 const std::int64_t s1 = std::min<std::int64_t>(steps, s0 + req.interval);
                 const double n = static_cast<double>(s1 - s0);
@@ -1038,6 +1043,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 }
                 if (balanced && all_busy && idle_onset_step < 0)
                     idle_onset_step = static_cast<double>(s0);
+                step_mean += untimed_step;
                 wall += step_mean * n;
                 last_interval_s = step_mean * n;
                 for (const auto &m : mean) {
@@ -1047,6 +1053,7 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                 intervals.push_back({{"step", s1},
                                      {"time_s", static_cast<double>(s1) * req.dt},
                                      {"wall_s", step_mean * n},
+                                     {"untimed_s", untimed_step * n},
                                      {"ranks", jr}});
             }
             json first_busy = nullptr;
@@ -1129,6 +1136,8 @@ json predict(const json &header, const json &model, const PredictRequest &req) {
                  {"run_drift_mean_factor", run_drift_mean},
                  // The replay's bubble added to the wall (0: none, or not applied).
                  {"time_sharing_bubble_s", bubble_total},
+                 // The wall time no phase timer holds, added to the wall (--untimed).
+                 {"untimed_s", untimed_step * static_cast<double>(steps)},
                  // How far a run's time follows its gauge (calibrate's elasticity; 1: whole).
                  {"speed_gauge_elasticity",
                   gauge_elasticity_for(model.value("speed_gauge", json(nullptr)))},

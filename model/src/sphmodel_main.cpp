@@ -222,6 +222,13 @@ int run(int argc, char **argv) {
                     "replay alone (model/NOTES.md, session 80)")
         ->capture_default_str()
         ->check(cli::IsMember({"on", "off"}));
+    pre->add_option("--untimed", q.untimed,
+                    "on: every step also pays the wall time no phase timer holds (the run's "
+                    "own bookkeeping, calibrate's untimed_per_step, the median of the "
+                    "calibration runs of the same ranks x threads); off: the phases alone "
+                    "(model/NOTES.md, session 94)")
+        ->capture_default_str()
+        ->check(cli::IsMember({"on", "off"}));
     pre->add_option("--rank-disorder", q.rank_disorder,
                     "List and table: each rank's compute per interaction from the memory order "
                     "of its own columns (columns: the calibration's per-column descents, where "

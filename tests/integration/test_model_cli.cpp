@@ -3,6 +3,7 @@
 #include "run.hpp"
 
 #include "sphperf/model/placement.hpp"
+#include "sphperf/model/runtime.hpp"
 #include "sphperf/model/workload.hpp"
 
 #include <gtest/gtest.h>
@@ -225,6 +226,43 @@ TEST(ModelCli, CalibratePredictValidate) {
                   c["ranks"].get<int>() == 3 ? "the step replayed (replay_time_shared)"
                                              : "none (within the cores)");
     }
+    // The wall time no phase timer holds (the run's own bookkeeping): calibrate measures it per
+    // ranks x threads from each run's wall_s and timers, and predict adds it to every step; off
+    // leaves the phases alone, and the two walls differ by exactly what the on run reports.
+    const auto model_json = load(f.model);
+    ASSERT_TRUE(model_json.contains("untimed_per_step"));
+    for (const auto &l : model_json["untimed_per_step"]["layouts"]) {
+        EXPECT_GE(l["runs"].get<int>(), 1);
+        EXPECT_LE(l["min_s"].get<double>(), l["median_s"].get<double>());
+        EXPECT_LE(l["median_s"].get<double>(), l["max_s"].get<double>());
+    }
+    const auto pred_off = f.dir / "pred_untimed_off.json";
+    const sphperf::testing::Run off =
+        run(bin("sphmodel") + " predict --model " + f.model.string() +
+            " --setup dambreak --scale 0.5 --ranks 1,2,3 --steps 60 --interval 10 --untimed off "
+            "--out " +
+            pred_off.string());
+    ASSERT_EQ(off.code, 0) << off.err;
+    const auto p_off = load(pred_off);
+    for (std::size_t k = 0; k < 3; ++k) {
+        const auto &on_c = p["configurations"][k];
+        const auto &off_c = p_off["configurations"][k];
+        const int ranks = on_c["ranks"].get<int>();
+        const double per_step = sphperf::model::untimed_s_per_step_for(model_json, ranks, 1);
+        EXPECT_GT(per_step, 0) << ranks;
+        EXPECT_NEAR(on_c["untimed_s"].get<double>(), 60 * per_step, 1e-12) << ranks;
+        EXPECT_EQ(off_c["untimed_s"].get<double>(), 0.0) << ranks;
+        EXPECT_NEAR(on_c["wall_s"].get<double>() - off_c["wall_s"].get<double>(),
+                    on_c["untimed_s"].get<double>(), 1e-9 * on_c["wall_s"].get<double>())
+            << ranks;
+    }
+    const sphperf::testing::Run bad_untimed =
+        run(bin("sphmodel") + " predict --model " + f.model.string() +
+            " --setup dambreak --scale 0.5 --ranks 2 --steps 60 --untimed maybe --out " +
+            (f.dir / "pred_untimed_bad.json").string());
+    EXPECT_EQ(bad_untimed.code, 2);
+    EXPECT_NE(bad_untimed.err.find("maybe"), std::string::npos) << bad_untimed.err;
+    EXPECT_FALSE(fs::exists(f.dir / "pred_untimed_bad.json"));
     // Above the cores the overhead is added per step on a shared core, or (the model before)
     // multiplies its summed compute: on the still tank at 3 ranks, where core 0 serves two busy
     // ranks every step, the two walls differ exactly by that: (W - steps a) f = W_ratio.
@@ -235,8 +273,9 @@ TEST(ModelCli, CalibratePredictValidate) {
         const sphperf::testing::Run rs =
             run(bin("sphmodel") + " predict --model " + f.model.string() +
                 " --setup still --scale 0.5 --ranks 3 --steps 40 --interval 10 "
-                "--time-sharing-overhead " +
-                form + " --out " + out.string());
+                "--untimed off --time-sharing-overhead " + // the sharing forms' phases alone
+                form +
+                " --out " + out.string());
         ASSERT_EQ(rs.code, 0) << rs.err;
         const auto c = load(out)["configurations"][0];
         EXPECT_EQ(c["time_sharing_source"].get<std::string>(),
@@ -280,9 +319,12 @@ TEST(ModelCli, CalibratePredictValidate) {
             const double step = iv["wall_s"].get<double>();
             EXPECT_GE(step * (1 + 1e-2),
                       rk[0]["compute_s"].get<double>() + rk[2]["compute_s"].get<double>());
+            // The step beyond its phases: the wall time no timer holds (--untimed on).
+            const double untimed = iv["untimed_s"].get<double>();
+            EXPECT_GT(untimed, 0);
             for (const auto &x : rk)
                 EXPECT_NEAR(x["compute_s"].get<double>() + x["comm_s"].get<double>() +
-                                x["wait_s"].get<double>(),
+                                x["wait_s"].get<double>() + untimed,
                             step, 1e-6 * step + 1e-9);
         }
         auto stripped = m;
@@ -322,8 +364,9 @@ TEST(ModelCli, CalibratePredictValidate) {
             const sphperf::testing::Run rl =
                 run(bin("sphmodel") + " predict --model " + model_line.string() +
                     " --setup still --scale 0.5 --ranks 3 --steps 40 --interval 10 "
-                    "--time-sharing-overhead " +
-                    form + " --out " + out.string());
+                    "--untimed off --time-sharing-overhead " + // as walls[0]
+                    form +
+                    " --out " + out.string());
             ASSERT_EQ(rl.code, 0) << rl.err;
             const auto c = load(out)["configurations"][0];
             const bool line = significant && form == "line";

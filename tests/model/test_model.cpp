@@ -557,6 +557,58 @@ SphRun two_rank_column_run(const std::string &path, Columns column_descents, Ord
 }
 } // namespace
 
+// The wall time no phase timer holds: planted as a run's wall_s beyond its slowest rank's
+// timers (rank 1 slower in odd intervals, so the slowest is taken per interval, not per rank),
+// recovered per step; the layouts' medians; and the rule predict reads them by.
+TEST(Calibrate, UntimedPerStepRecoversTheWallNoTimerHolds) {
+    auto run = [](const std::string &path, int ranks, int threads, double untimed_per_step) {
+        SphRun r = two_rank_column_run(
+            path, [](int) { return std::vector<double>(4, 100.0); },
+            [](int) { return std::vector<double>(4, 100.0); }, [](int, double) { return 20e-9; });
+        r.config.ranks = ranks;
+        r.config.threads = threads;
+        double timed = 0, steps = 0;
+        for (std::size_t k = 0; k < r.intervals.size(); ++k) {
+            auto &iv = r.intervals[k];
+            iv.ranks[0].timers["wait_s"] = 1e-3;
+            iv.ranks[1].timers["wait_s"] = k % 2 ? 3e-3 : 0.0;
+            double slowest = 0;
+            for (const auto &rk : iv.ranks) {
+                double t = 0;
+                for (const auto &[key, v] : rk.timers)
+                    t += v;
+                slowest = std::max(slowest, t);
+            }
+            timed += slowest;
+            steps += iv.ranks.front().steps;
+        }
+        r.wall_s = timed + untimed_per_step * steps;
+        return r;
+    };
+    EXPECT_NEAR(untimed_s_per_step(run("a", 2, 1, 35e-6)), 35e-6, 1e-15);
+    EXPECT_NEAR(untimed_s_per_step(run("none", 2, 1, 0)), 0, 1e-15);
+    const nlohmann::json section =
+        untimed_per_step({run("a", 2, 1, 30e-6), run("b", 2, 1, 40e-6), run("c", 2, 1, 35e-6),
+                          run("d", 1, 1, 5e-6), run("e", 1, 2, 7e-6), run("f", 4, 1, 25e-6)});
+    ASSERT_EQ(section.at("layouts").size(), 4u);
+    const nlohmann::json &two = section.at("layouts").at(2); // ordered by ranks, then threads
+    EXPECT_EQ(two.at("ranks"), 2);
+    EXPECT_EQ(two.at("runs"), 3);
+    EXPECT_NEAR(two.at("median_s").get<double>(), 35e-6, 1e-15);
+    EXPECT_NEAR(two.at("min_s").get<double>(), 30e-6, 1e-15);
+    EXPECT_NEAR(two.at("max_s").get<double>(), 40e-6, 1e-15);
+    const nlohmann::json model = {{"untimed_per_step", section}};
+    EXPECT_NEAR(untimed_s_per_step_for(model, 2, 1), 35e-6, 1e-15);
+    EXPECT_NEAR(untimed_s_per_step_for(model, 1, 2), 7e-6, 1e-15);
+    // Unseen layouts: the nearest rank count at the same threads (the larger on a tie), else
+    // the nearest at any.
+    EXPECT_NEAR(untimed_s_per_step_for(model, 3, 1), 25e-6, 1e-15);
+    EXPECT_NEAR(untimed_s_per_step_for(model, 8, 1), 25e-6, 1e-15);
+    EXPECT_NEAR(untimed_s_per_step_for(model, 2, 2), 7e-6, 1e-15);
+    EXPECT_NEAR(untimed_s_per_step_for(model, 2, 4), 35e-6, 1e-15);
+    EXPECT_EQ(untimed_s_per_step_for(nlohmann::json::object(), 2, 1), 0.0);
+}
+
 // A slow spell of the host inside the one long run (intervals 5 and 6 at 1.4 times the time,
 // the speed gauge reading it) bends the cost line fitted within the run; each interval's times
 // over its gauge against the run's whole (within_run_speed) recover the planted line's shape.

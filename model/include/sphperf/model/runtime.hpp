@@ -197,6 +197,17 @@ nlohmann::json run_drift(const std::vector<SphRun> &runs, int cores);
 // "intervals_phi_at_least_half", "intervals_phi_below_half", "slice_s", "runs", "method",
 // "uses"}, or null with fewer than 3 intervals of phi >= 0.5 or of phi < 0.5.
 nlohmann::json sharing_bubble(const std::vector<SphRun> &runs, int cores);
+
+// The wall time of a run that no phase timer holds, per step: (wall_s - the slowest rank's
+// timers summed per interval) / steps (the run's own bookkeeping between the timed phases).
+double untimed_s_per_step(const SphRun &run);
+// calibrate's "untimed_per_step": {"method", "layouts": [{"ranks", "threads", "runs",
+// "median_s", "min_s", "max_s"}]}, one layout per ranks x threads the runs hold.
+nlohmann::json untimed_per_step(const std::vector<SphRun> &runs);
+// The seconds per step predict adds for `ranks` x `threads` from that section: the layout's
+// median, else the nearest rank count's (the larger on a tie) at the same thread count, else
+// at any; 0 without the section (a model from before session 94).
+double untimed_s_per_step_for(const nlohmann::json &model, int ranks, int threads);
 nlohmann::json speed_normalise(std::vector<SphRun> &runs, SpeedGauge mode,
                                GaugeReference reference = GaugeReference::pooled,
                                GaugeElasticity elasticity = GaugeElasticity::one, int cores = 0);
@@ -287,6 +298,10 @@ struct PredictRequest {
     // sharing_bubble_phi of the predicted compute); off: the replay alone (the model of
     // sessions 40-79). model/NOTES.md, session 80.
     std::string time_sharing_bubble = "on";
+    // on: every step also pays the wall time no phase timer holds, the run's own bookkeeping
+    // (calibrate's untimed_per_step, per ranks x threads); off: the phases alone (the model of
+    // sessions 1-93). model/NOTES.md, session 94.
+    std::string untimed = "on";
     // columns: each list or table rank's compute per interaction follows the memory order of
     // its own columns (ColumnDisorder, session 56); none: every rank the whole run's profile.
     std::string rank_disorder = "columns";
