@@ -561,26 +561,19 @@ SphRun two_rank_column_run(const std::string &path, Columns column_descents, Ord
 // timers (rank 1 slower in odd intervals, so the slowest is taken per interval, not per rank),
 // recovered per step; the layouts' medians; and the rule predict reads them by.
 TEST(Calibrate, UntimedPerStepRecoversTheWallNoTimerHolds) {
-    auto run = [](const std::string &path, int ranks, int threads, double untimed_per_step) {
+    // 8 intervals of 10 steps; both ranks compute 20 ns x 2000 interactions x 10 steps = 0.4 ms
+    // an interval; rank 0 waits 1 ms in every interval, rank 1 3 ms in the odd ones. The
+    // slowest rank's timers: 3.4 ms in the four odd intervals, 1.4 ms in the four even ones.
+    constexpr double timed = 4 * 3.4e-3 + 4 * 1.4e-3, steps = 80;
+    auto run = [&](const std::string &path, int ranks, int threads, double untimed_per_step) {
         SphRun r = two_rank_column_run(
             path, [](int) { return std::vector<double>(4, 100.0); },
             [](int) { return std::vector<double>(4, 100.0); }, [](int, double) { return 20e-9; });
         r.config.ranks = ranks;
         r.config.threads = threads;
-        double timed = 0, steps = 0;
         for (std::size_t k = 0; k < r.intervals.size(); ++k) {
-            auto &iv = r.intervals[k];
-            iv.ranks[0].timers["wait_s"] = 1e-3;
-            iv.ranks[1].timers["wait_s"] = k % 2 ? 3e-3 : 0.0;
-            double slowest = 0;
-            for (const auto &rk : iv.ranks) {
-                double t = 0;
-                for (const auto &[key, v] : rk.timers)
-                    t += v;
-                slowest = std::max(slowest, t);
-            }
-            timed += slowest;
-            steps += iv.ranks.front().steps;
+            r.intervals[k].ranks[0].timers["wait_s"] = 1e-3;
+            r.intervals[k].ranks[1].timers["wait_s"] = k % 2 ? 3e-3 : 0.0;
         }
         r.wall_s = timed + untimed_per_step * steps;
         return r;
