@@ -41,6 +41,37 @@ TEST(StreamCli, TinyRunWritesACompleteReport) {
     EXPECT_EQ(j["results"].size(), (2 - j["same_placement"].size()) * widths.size());
     expect_figures_sane(j);
     EXPECT_NE(r.out.find("triad"), std::string::npos); // human table on stdout
+    // Huge pages are asked for by default; the report says so and what the system's mode is.
+    EXPECT_TRUE(j["huge_pages"]["requested"].get<bool>());
+    EXPECT_FALSE(j["huge_pages"]["system_thp_mode"].get<std::string>().empty());
+    EXPECT_TRUE(j["arrays_reused_across_placements"].is_boolean());
+}
+
+// Two placements on the same arrays (one NUMA node) or on new ones: either way every result
+// validates; with --huge-pages off nothing is advised; a bad value exits 2 with no report.
+TEST(StreamCli, HugePagesOffAndTwoPlacementsValidate) {
+    const auto dir = scratch("stream_pages");
+    const auto out = dir / "s.json";
+    const auto r = run(bin("stream") + tiny_stream +
+                       " --threads 1,2 --affinity compact --vector-bits 128 --huge-pages off "
+                       "--json " +
+                       out.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto j = load(out);
+    EXPECT_FALSE(j["huge_pages"]["requested"].get<bool>());
+    EXPECT_FALSE(j["huge_pages"]["advised"].get<bool>());
+    ASSERT_EQ(j["results"].size(), 2u);
+    for (const auto &res : j["results"]) {
+        EXPECT_TRUE(res["validation"]["ok"].get<bool>()) << res["threads"];
+        EXPECT_TRUE(res["validation_nt"]["ok"].get<bool>()) << res["threads"];
+    }
+    EXPECT_EQ(j["results"][1]["threads"], 2);
+    fs::remove(out);
+    const auto bad =
+        run(bin("stream") + tiny_stream + " --huge-pages maybe --json " + out.string());
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_NE(bad.err.find("maybe"), std::string::npos) << bad.err;
+    EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(StreamCli, SweepsRequestedThreadsAndAffinities) {

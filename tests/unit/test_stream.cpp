@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <vector>
 
 namespace st = sphperf::stream;
@@ -51,6 +52,23 @@ TEST(Stream, ValidationCatchesOneWrongElement) {
     EXPECT_FALSE(v.ok);
     EXPECT_GT(v.rel_error[1], st::validation_epsilon);
     EXPECT_EQ(v.rel_error[0], 0.0);
+}
+
+// The sums run in eight lanes with a scalar tail: an error in the last few elements of an
+// array whose length is not a multiple of eight counts as much as one in the lanes.
+TEST(Stream, ValidationCatchesAWrongElementInTheTail) {
+    Arrays x(1005);
+    x.iterate(3);
+    const auto expected = st::expected_values<double>(3);
+    x.a[1004] += 2.0;
+    const auto tail = st::validate<double>(x.a, x.b, x.c, expected);
+    x.a[1004] -= 2.0;
+    x.a[3] += 2.0;
+    const auto lane = st::validate<double>(x.a, x.b, x.c, expected);
+    EXPECT_FALSE(tail.ok);
+    EXPECT_FALSE(lane.ok);
+    EXPECT_DOUBLE_EQ(tail.rel_error[0], lane.rel_error[0]);
+    EXPECT_DOUBLE_EQ(tail.rel_error[0], 2.0 / 1005 / std::abs(expected[0]));
 }
 
 // The threads of the benchmark each sum their own part: the parts' sums give the whole check,
